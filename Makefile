@@ -1,0 +1,26 @@
+# One command for the main job (`make run`) and one for the tests (`make test`).
+# Each creates .venv on first use and reinstalls when pyproject.toml changes.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+export MUJOCO_GL ?= egl
+
+.PHONY: run test bench clean
+
+$(VENV)/.installed: pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $@
+
+run: $(VENV)/.installed
+	$(PY) -m avsim run --town town07 --placement standard --policy baseline --perception oracle --speed-kmh 85 --seed 0 --json results/run.json
+
+test: $(VENV)/.installed
+	$(PY) -m pytest -q
+
+bench: $(VENV)/.installed
+	$(PY) -m avsim bench
+
+clean:
+	rm -rf $(VENV) results .pytest_cache

@@ -1,0 +1,61 @@
+"""`avsim bench`: physics, rendering and closed-loop speed on this machine.
+
+Prints measured figures only; targets are stated beside them for comparison, and
+nothing here asserts. Run with `avsim bench` or `python -m avsim.bench`.
+"""
+
+from __future__ import annotations
+
+import time
+
+import mujoco
+
+from avsim.config import SimConfig, with_overrides
+from avsim.loop import ClosedLoop, run_config
+
+
+def _physics_steps_per_s(config: SimConfig, steps: int) -> float:
+    loop = ClosedLoop(config)
+    loop.vehicle.place(-200.0, loop.scene.layout.lane_center_y_m, 0.0, 20.0)
+    start = time.perf_counter()
+    mujoco.mj_step(loop.model, loop.data, nstep=steps)
+    rate = steps / (time.perf_counter() - start)
+    loop.close()
+    return rate
+
+
+def _frames_per_s(config: SimConfig, frames: int, segmentation: bool) -> float:
+    loop = ClosedLoop(config)
+    loop.vehicle.place(-200.0, loop.scene.layout.lane_center_y_m, 0.0, 20.0)
+    render = (lambda: loop.rig.sign_boxes(loop.data, "front", {"stop_sign": 0})) if segmentation else (lambda: loop.rig.render_rgb(loop.data, "front"))
+    render()  # context creation is not part of the frame rate
+    elapsed = 0.0
+    for _ in range(frames):
+        # Move the car between frames: an unchanged scene can be served from caches.
+        mujoco.mj_step(loop.model, loop.data, nstep=25)
+        start = time.perf_counter()
+        render()
+        elapsed += time.perf_counter() - start
+    loop.close()
+    return frames / elapsed
+
+
+def run_benchmarks(quick: bool = False) -> None:
+    base = SimConfig()
+    frames = 50 if quick else 200
+    print(f"avsim bench ({'quick' if quick else 'full'}): {base.camera.width_px}x{base.camera.height_px}, "
+          f"physics dt {base.loop.physics_dt_s} s, control dt {base.loop.control_dt_s} s")
+    rate = _physics_steps_per_s(base, 20000 if quick else 100000)
+    print(f"  physics                          {rate:10.0f} steps/s        (target >= 50000)")
+    print(f"  front camera RGB render          {_frames_per_s(base, frames, False):10.1f} frames/s       (target >= 40)")
+    print(f"  front camera segmentation boxes  {_frames_per_s(base, frames, True):10.1f} frames/s       "
+          f"({base.camera.seg_supersample}x supersampled)")
+    for label, policy in (("one camera (baseline)", "baseline"), ("two cameras (side_camera)", "side_camera")):
+        config = with_overrides(base, {"policy": {"name": policy}, "perception": {"kind": "oracle"}})
+        result, wall_s = run_config(config)
+        print(f"  closed loop, oracle, {label:26s} {result.sim_time_s / wall_s:5.1f}x real time "
+              f"({result.sim_time_s:.1f} s simulated in {wall_s:.1f} s; target >= 3 for one camera)")
+
+
+if __name__ == "__main__":
+    run_benchmarks()

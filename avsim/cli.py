@@ -1,0 +1,132 @@
+"""Command-line entry point: `avsim run`, `avsim snapshot` and `avsim bench`.
+
+Every user error (an AvsimError) is printed as one line on stderr, with a non-zero
+exit code (2 for bad input) and no output file written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tomllib
+from collections.abc import Sequence
+from typing import Any
+
+from avsim.errors import AvsimError, ConfigError
+
+
+def _parse_set(items: Sequence[str]) -> dict[str, Any]:
+    """Turn ["policy.baseline_brake=0.9", ...] into a nested override mapping."""
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--set expects KEY=VALUE (e.g. policy.baseline_brake=0.9), got '{item}'")
+        try:
+            value = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw  # a bare word is a string
+        node = overrides
+        *parents, leaf = key.split(".")
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return overrides
+
+
+def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in extra.items():
+        merged[key] = _merge(merged[key], value) if isinstance(value, dict) and isinstance(merged.get(key), dict) else value
+    return merged
+
+
+def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--town", help="town name (town03, town07, town10)")
+    parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
+    parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, or a PNG path")
+    parser.add_argument("--speed-kmh", type=float, help="cruise speed [km/h]")
+    parser.add_argument("--seed", type=int, help="random seed (start jitter)")
+    parser.add_argument("--physics-dt-s", type=float, help="physics step [s] (default 0.002)")
+    parser.add_argument("--control-dt-s", type=float, help="control and sensing period [s] (default 0.05)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override any config key, e.g. --set policy.baseline_brake=0.9 (repeatable)")
+
+
+def _config_from_args(args: argparse.Namespace):
+    from avsim.config import SimConfig, with_overrides
+
+    flags = {
+        "scenario": {"town": args.town, "placement": args.placement, "sign": args.sign, "speed_kmh": args.speed_kmh, "seed": args.seed},
+        "loop": {"physics_dt_s": args.physics_dt_s, "control_dt_s": args.control_dt_s},
+        "policy": {"name": getattr(args, "policy", None)},
+        "perception": {"kind": getattr(args, "perception", None)},
+    }
+    overrides = {section: {k: v for k, v in values.items() if v is not None} for section, values in flags.items()}
+    return with_overrides(SimConfig(), _merge(overrides, _parse_set(args.set)))
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from avsim.loop import run_config
+    from avsim.metrics import write_json_atomic
+    from avsim.summary import format_summary
+
+    config = _config_from_args(args)
+    result, wall_s = run_config(config)
+    print(format_summary(result, wall_s))
+    if args.json:
+        write_json_atomic(args.json, result.to_json_dict())
+        print(f"  result written to {args.json}")
+    return 0
+
+
+def _cmd_snapshot(args: argparse.Namespace) -> int:
+    from avsim.snapshot import save_snapshot
+
+    config = _config_from_args(args)
+    for path in save_snapshot(config, args.dist_m, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from avsim.bench import run_benchmarks
+
+    run_benchmarks(quick=args.quick)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="drive one scenario and print its summary")
+    _add_scenario_flags(run)
+    run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, autopilot")
+    run.add_argument("--perception", help="perception: oracle")
+    run.add_argument("--json", help="write the result record to this JSON file")
+    run.set_defaults(func=_cmd_run)
+
+    snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
+    _add_scenario_flags(snap)
+    snap.add_argument("--dist-m", type=float, default=30.0, help="front bumper to stop line [m]")
+    snap.add_argument("--out", default="snapshot", help="output prefix; writes PREFIX_front.png and PREFIX_side.png")
+    snap.set_defaults(func=_cmd_snapshot)
+
+    bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
+    bench.add_argument("--quick", action="store_true", help="fewer repetitions")
+    bench.set_defaults(func=_cmd_bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except AvsimError as exc:
+        print(f"avsim: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,236 @@
+"""Typed, frozen configuration.
+
+`SimConfig` groups one dataclass per concern (scenario, vehicle, camera, loop,
+perception, policy). Overrides arrive as nested mappings (from the CLI or a TOML
+file); `with_overrides` rejects unknown keys and values of the wrong type, naming
+the key, so a misspelt override can never be silently ignored. Each dataclass
+checks its own value ranges in `__post_init__`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+from avsim.errors import ConfigError
+
+C = TypeVar("C")
+
+
+def _require(ok: bool, message: str) -> None:
+    if not ok:
+        raise ConfigError(message)
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Where and how fast the car drives.
+
+    Distances are along the road (world +x); the stop line is at x = 0.
+    """
+
+    town: str = "town07"
+    placement: str = "standard"
+    # Name of a texture in textures/ ("clean" is the generated stop sign) or a path to a PNG.
+    sign: str = "clean"
+    speed_kmh: float = 85.0  # cruise target
+    start_speed_kmh: float = 0.0  # the study starts from rest and accelerates
+    start_dist_m: float = 230.0  # front bumper to stop line at t = 0
+    seed: int = 0
+    # Seeds the town's scenery (building heights, trees, parked cars); fixed per study town.
+    layout_seed: int = 0
+    # Seeded jitter of the start position [m]; varies runs of one scenario across seeds.
+    start_jitter_m: float = 2.0
+    sun_elevation_deg: float = 50.0
+    sun_azimuth_deg: float = 30.0
+
+    def __post_init__(self) -> None:
+        _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
+        _require(0 <= self.start_speed_kmh <= 200, f"scenario.start_speed_kmh must be in [0, 200], got {self.start_speed_kmh}")
+        _require(20 <= self.start_dist_m <= 300, f"scenario.start_dist_m must be in [20, 300] (the approach road is 300 m), got {self.start_dist_m}")
+        _require(self.seed >= 0 and self.layout_seed >= 0, f"scenario.seed and scenario.layout_seed must be >= 0, got {self.seed}, {self.layout_seed}")
+        _require(0 <= self.start_jitter_m <= 10, f"scenario.start_jitter_m must be in [0, 10], got {self.start_jitter_m}")
+        _require(5 <= self.sun_elevation_deg <= 90, f"scenario.sun_elevation_deg must be in [5, 90], got {self.sun_elevation_deg}")
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    """Powertrain, brakes and resistances. Mass and geometry live in models/car.xml."""
+
+    max_drive_torque_nm: float = 900.0  # per driven (rear) wheel
+    # Per-wheel brake torque at brake = 1. The 60/40 front bias keeps the rear wheels
+    # rolling at full brake, as ABS would, giving about 8.6 m/s^2 on dry asphalt.
+    max_brake_torque_front_nm: float = 1350.0
+    max_brake_torque_rear_nm: float = 900.0
+    rolling_resistance_coeff: float = 0.012
+    drag_area_m2: float = 0.65  # Cd * frontal area of a sedan (0.29 * 2.2 m^2)
+    air_density_kgpm3: float = 1.2
+    tyre_friction: float = 1.0  # dry asphalt
+
+    def __post_init__(self) -> None:
+        for name in ("max_drive_torque_nm", "max_brake_torque_front_nm", "max_brake_torque_rear_nm"):
+            _require(getattr(self, name) > 0, f"vehicle.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("rolling_resistance_coeff", "drag_area_m2", "air_density_kgpm3"):
+            _require(getattr(self, name) >= 0, f"vehicle.{name} must be >= 0, got {getattr(self, name)}")
+        _require(0.1 <= self.tyre_friction <= 2.0, f"vehicle.tyre_friction must be in [0.1, 2], got {self.tyre_friction}")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Both cameras share a resolution. fovy is MuJoCo's vertical field of view.
+
+    At the defaults f_px = 240 / tan(15 deg) = 896 px, so the 0.762 m stop sign is
+    17 px tall at 40 m.
+    """
+
+    width_px: int = 640
+    height_px: int = 480
+    fovy_deg: float = 30.0
+    side_fovy_deg: float = 30.0
+    side_yaw_deg: float = 20.0  # towards the right-hand roadside
+    # Multisampling costs about half the frame rate on llvmpipe; off by default.
+    offsamples: int = 0
+    # Segmentation is rendered at this multiple of the resolution so that
+    # ground-truth boxes have sub-pixel edges (a 60 m sign is only 11 px tall).
+    seg_supersample: int = 2
+
+    def __post_init__(self) -> None:
+        _require(64 <= self.width_px <= 4096 and 64 <= self.height_px <= 4096,
+                 f"camera resolution must be 64..4096 px a side, got {self.width_px}x{self.height_px}")
+        for name in ("fovy_deg", "side_fovy_deg"):
+            _require(1 <= getattr(self, name) <= 150, f"camera.{name} must be in [1, 150], got {getattr(self, name)}")
+        _require(-90 <= self.side_yaw_deg <= 90, f"camera.side_yaw_deg must be in [-90, 90], got {self.side_yaw_deg}")
+        _require(self.offsamples in (0, 1, 2, 4, 8, 16), f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
+        _require(self.seg_supersample in (1, 2, 3, 4), f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
+
+    @property
+    def f_px(self) -> float:
+        """Front camera focal length [px]: (H/2) / tan(fovy/2)."""
+        return focal_length_px(self.height_px, self.fovy_deg)
+
+
+def focal_length_px(height_px: int, fovy_deg: float) -> float:
+    """Pinhole focal length [px] for an image `height_px` tall with vertical FOV `fovy_deg`."""
+    return (height_px / 2) / math.tan(math.radians(fovy_deg) / 2)
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Fixed time steps. Control and sensing run every `control_dt_s`; physics in between."""
+
+    physics_dt_s: float = 0.002
+    control_dt_s: float = 0.05  # 20 Hz, CARLA's synchronous default
+    max_time_s: float = 60.0
+
+    def __post_init__(self) -> None:
+        _require(0 < self.physics_dt_s <= 0.01, f"loop.physics_dt_s must be in (0, 0.01], got {self.physics_dt_s}")
+        _require(0 < self.control_dt_s <= 0.1, f"loop.control_dt_s must be in (0, 0.1] (CARLA warns above 0.1 s), got {self.control_dt_s}")
+        ratio = self.control_dt_s / self.physics_dt_s
+        _require(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1,
+                 f"loop.control_dt_s ({self.control_dt_s}) must be a whole multiple of loop.physics_dt_s ({self.physics_dt_s})")
+        _require(0 < self.max_time_s <= 600, f"loop.max_time_s must be in (0, 600], got {self.max_time_s}")
+
+    @property
+    def substeps(self) -> int:
+        return round(self.control_dt_s / self.physics_dt_s)
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """How signs are perceived. `oracle` reads boxes from segmentation."""
+
+    kind: str = "oracle"
+    # Like a real detector the oracle has a range: it reports a sign only once its
+    # box is this tall. 16 px is about 43 m at the default front camera.
+    min_box_height_px: float = 16.0
+
+    def __post_init__(self) -> None:
+        _require(self.min_box_height_px >= 1, f"perception.min_box_height_px must be >= 1, got {self.min_box_height_px}")
+
+
+@dataclass(frozen=True)
+class PolicyConfig:
+    """Braking policy and its parameters (see avsim/control/policies.py)."""
+
+    name: str = "baseline"
+    conf_threshold: float = 0.5  # a detection counts above this confidence
+    baseline_brake: float = 0.85  # constant brake level of the `baseline` rule
+    brake_multiplier: float = 1.0  # M in b = min(a / a_max * M, 1)
+    a_max_mps2: float = 9.81
+    sign_height_m: float = 0.762  # H_real of the stop sign, flat to flat
+    # The road convention the policies assume: the stop line is this far before the sign.
+    stop_line_before_sign_m: float = 1.0
+    # Distance the `adjusted` and `autopilot` policies aim to stop short of the line.
+    stop_margin_m: float = 0.5
+    # The autopilot starts braking when stopping at the line needs this deceleration,
+    # and maps a deceleration to a brake level with the car's full-brake figure.
+    autopilot_decel_mps2: float = 6.0
+    autopilot_full_brake_mps2: float = 8.6
+
+    def __post_init__(self) -> None:
+        _require(0 < self.conf_threshold < 1, f"policy.conf_threshold must be in (0, 1), got {self.conf_threshold}")
+        _require(0 < self.baseline_brake <= 1, f"policy.baseline_brake must be in (0, 1], got {self.baseline_brake}")
+        _require(0.6 <= self.brake_multiplier <= 1.0, f"policy.brake_multiplier (M) must be in [0.6, 1], got {self.brake_multiplier}")
+        _require(self.a_max_mps2 > 0, f"policy.a_max_mps2 must be > 0, got {self.a_max_mps2}")
+        _require(self.sign_height_m > 0, f"policy.sign_height_m must be > 0, got {self.sign_height_m}")
+        _require(0 < self.autopilot_decel_mps2 < self.autopilot_full_brake_mps2,
+                 f"policy.autopilot_decel_mps2 must be in (0, autopilot_full_brake_mps2), got {self.autopilot_decel_mps2}")
+        _require(0 <= self.stop_margin_m <= 10, f"policy.stop_margin_m must be in [0, 10], got {self.stop_margin_m}")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything that determines a run. Same config, same result, bit for bit."""
+
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    vehicle: VehicleConfig = field(default_factory=VehicleConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    loop: LoopConfig = field(default_factory=LoopConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def with_overrides(config: C, overrides: Mapping[str, Any], _path: str = "") -> C:
+    """Return a copy of the dataclass `config` with nested `overrides` applied.
+
+    Raises ConfigError naming the dotted key for unknown keys and mistyped values.
+    """
+    if not isinstance(overrides, Mapping):
+        raise ConfigError(f"config section '{_path.rstrip('.') or 'root'}' must be a table of keys, got {overrides!r}")
+    fields = {f.name: f for f in dataclasses.fields(config)}  # type: ignore[arg-type]
+    hints = typing.get_type_hints(type(config))
+    changes: dict[str, Any] = {}
+    for key, value in overrides.items():
+        dotted = f"{_path}{key}"
+        if key not in fields:
+            raise ConfigError(f"unknown config key '{dotted}'; valid keys here: {', '.join(sorted(fields))}")
+        current = getattr(config, key)
+        if dataclasses.is_dataclass(current):
+            changes[key] = with_overrides(current, value, f"{dotted}.")
+        else:
+            changes[key] = _coerce(value, hints[key], dotted)
+    return dataclasses.replace(config, **changes)  # type: ignore[type-var]
+
+
+def _coerce(value: Any, annotation: Any, dotted: str) -> Any:
+    """Check `value` against a scalar field type; ints are accepted for floats."""
+    expected = [a for a in typing.get_args(annotation)] if isinstance(annotation, types.UnionType) else [annotation]
+    if value is None and type(None) in expected:
+        return None
+    for kind in expected:
+        if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+            if not math.isfinite(value):
+                break
+            return float(value)
+        if kind in (int, str, bool) and type(value) is kind:
+            return value
+    names = " or ".join(getattr(k, "__name__", str(k)) for k in expected)
+    raise ConfigError(f"config key '{dotted}' must be {names}, got {value!r}")

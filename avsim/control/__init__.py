@@ -1,0 +1,1 @@
+"""Control: the cruise and lane-keeping controllers and the braking policies."""

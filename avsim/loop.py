@@ -1,0 +1,155 @@
+"""The closed loop: one fixed-dt control cycle, in one order, written down once.
+
+Each control step (every `loop.control_dt_s`, 20 Hz by default):
+
+    render -> perceive -> decide -> actuate -> N physics steps -> record
+
+where N = control_dt_s / physics_dt_s (25 at the defaults). Rendering happens inside
+perception, only for the cameras the policy uses and only in the modality the
+perception needs. Commands are held constant over the N physics steps (zero-order
+hold), as a real ECU's would be between sensor frames.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from avsim.config import SimConfig
+from avsim.control.cruise import LaneKeeper, SpeedController
+from avsim.control.policies import POLICIES, STOP_CLASS, BrakeDecision, Observation, PolicyContext
+from avsim.errors import PhysicsError
+from avsim.metrics import STOPPED_SPEED_MPS, RunResult, StepRecord, summarise
+from avsim.perception.base import Detection
+from avsim.perception.factory import build_perception
+from avsim.sensors.camera import CameraRig
+from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls, Vehicle
+from avsim.world.scene import build_scene
+
+# A car past the sign by this much without braking has certainly run it [m].
+RAN_PAST_SIGN_M = 40.0
+MAX_PLAUSIBLE_SPEED_MPS = 100.0
+
+
+class ClosedLoop:
+    """A single run of one `SimConfig`. Build, then `run()` (or `step()` repeatedly)."""
+
+    def __init__(self, config: SimConfig) -> None:
+        self.config = config
+        self.model, self.scene = build_scene(config)
+        self.data = mujoco.MjData(self.model)
+        self.vehicle = Vehicle(self.model, self.data, config.vehicle)
+        self.rig = CameraRig(self.model, config.camera)
+        self.perception = build_perception(config.perception, self.model, self.scene)
+        cam_x_m = float(self.model.cam_pos[self.model.camera("car/front").id][0])
+        context = PolicyContext(
+            front_f_px=self.rig.intrinsics("front").f_px,
+            cam_to_bumper_m=FRONT_BUMPER_X_M - cam_x_m,
+            control_dt_s=config.loop.control_dt_s,
+        )
+        self.policy = POLICIES.get(config.policy.name)(config.policy, context)
+        self.cruise = SpeedController(config.scenario.speed_kmh / 3.6)
+        self.lane = LaneKeeper(self.scene.layout.lane_center_y_m)
+        self.records: list[StepRecord] = []
+        self.time_s = 0.0
+        self.braking = False
+        self.stopped = False
+        self._place_car(np.random.default_rng(config.scenario.seed))
+
+    def _place_car(self, rng: np.random.Generator) -> None:
+        scenario = self.config.scenario
+        jitter_m = float(rng.uniform(-scenario.start_jitter_m, scenario.start_jitter_m))
+        bumper_x = self.scene.stop_line_x_m - scenario.start_dist_m + jitter_m
+        self.vehicle.place(bumper_x - FRONT_BUMPER_X_M, self.scene.layout.lane_center_y_m, 0.0, scenario.start_speed_kmh / 3.6)
+
+    # ---- one control step ------------------------------------------------------------
+    def step(self) -> StepRecord:
+        """Advance one control step; returns (and stores) its record.
+
+        The record holds the state at sensing time (the start of the step) with the
+        detections and commands that state produced.
+        """
+        speed = self.vehicle.speed_mps()
+        # render -> perceive
+        detections = {cam: self.perception.detect(self.rig, self.data, cam) for cam in self.policy.cameras}
+        # decide
+        bumper = self.vehicle.front_bumper_xy_m()
+        obs = Observation(self.time_s, speed, detections, self.scene.stop_line_x_m - bumper[0])
+        decision = self.policy.decide(obs)
+        # actuate
+        controls = self._controls(decision, speed)
+        self.vehicle.apply(controls)
+        record = self._record(controls, decision, detections)  # state at sensing time
+        # N physics steps
+        mujoco.mj_step(self.model, self.data, nstep=self.config.loop.substeps)
+        self.time_s = round(self.time_s + self.config.loop.control_dt_s, 9)
+        self._check_physics()
+        # record
+        self.records.append(record)
+        return record
+
+    def _controls(self, decision: BrakeDecision, speed_mps: float) -> Controls:
+        self.braking = self.braking or decision.brake > 0
+        throttle = 0.0 if self.braking else self.cruise.throttle(speed_mps, self.config.loop.control_dt_s)
+        xy = self.vehicle.position_xy_m()
+        steer = self.lane.steer_rad(float(xy[1]), self.vehicle.yaw_rad(), speed_mps)
+        return Controls(throttle=throttle, brake=decision.brake, steer_rad=steer)
+
+    def _check_physics(self) -> None:
+        bad_qacc = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+        if not self.vehicle.is_finite() or bad_qacc:
+            raise PhysicsError(f"physics diverged at t = {self.time_s:.2f} s (NaN or bad acceleration); lower loop.physics_dt_s")
+        if abs(self.vehicle.speed_mps()) > MAX_PLAUSIBLE_SPEED_MPS:
+            raise PhysicsError(f"physics diverged at t = {self.time_s:.2f} s (speed {self.vehicle.speed_mps():.0f} m/s); lower loop.physics_dt_s")
+
+    def _record(self, controls: Controls, decision: BrakeDecision, detections: dict[str, list[Detection]]) -> StepRecord:
+        xy = self.vehicle.position_xy_m()
+        bumper_x = float(self.vehicle.front_bumper_xy_m()[0])
+        flat = tuple(d for dets in detections.values() for d in dets)
+        stop_confs = [d.confidence for d in flat if d.class_name == STOP_CLASS and d.confidence >= self.config.policy.conf_threshold]
+        return StepRecord(
+            time_s=self.time_s, x_m=float(xy[0]), y_m=float(xy[1]), yaw_rad=self.vehicle.yaw_rad(),
+            speed_mps=self.vehicle.speed_mps(), throttle=controls.throttle, brake=controls.brake, steer_rad=controls.steer_rad,
+            stop_line_dist_m=self.scene.stop_line_x_m - bumper_x,
+            sign_dist_m=self.scene.stop_sign.base_pos_m[0] - bumper_x,
+            est_stop_line_dist_m=decision.est_stop_line_dist_m,
+            required_decel_mps2=decision.required_decel_mps2 if decision.required_decel_mps2 is None or math.isfinite(decision.required_decel_mps2) else None,
+            top_stop_conf=max(stop_confs, default=0.0),
+            detections=flat,
+        )
+
+    # ---- whole run ---------------------------------------------------------------------
+    def done(self) -> bool:
+        """Whether the run is over: stopped after braking, ran well past the sign, or timed out."""
+        self.stopped = self.braking and self.vehicle.speed_mps() < STOPPED_SPEED_MPS
+        sign_dist_m = self.scene.stop_sign.base_pos_m[0] - float(self.vehicle.front_bumper_xy_m()[0])
+        ran_past = not self.braking and sign_dist_m < -RAN_PAST_SIGN_M
+        return self.stopped or ran_past or self.time_s >= self.config.loop.max_time_s
+
+    def run(self, on_step: Callable[[ClosedLoop, StepRecord], None] | None = None) -> RunResult:
+        """Step until the car stops, runs well past the sign, or time runs out."""
+        while not self.done():
+            record = self.step()
+            if on_step is not None:
+                on_step(self, record)
+        final = self._record(Controls(brake=self.records[-1].brake), BrakeDecision(self.records[-1].brake), {})
+        sign = self.scene.stop_sign.base_pos_m
+        return summarise(self.records, final, (sign[0], sign[1]), self.stopped, self.config.to_dict())
+
+    def close(self) -> None:
+        self.rig.close()
+
+
+def run_config(config: SimConfig) -> tuple[RunResult, float]:
+    """Run `config` to the end; returns the result and the wall-clock time [s]."""
+    start = time.perf_counter()
+    loop = ClosedLoop(config)
+    try:
+        result = loop.run()
+    finally:
+        loop.close()
+    return result, time.perf_counter() - start

@@ -1,0 +1,1 @@
+"""Perception: turns what a camera sees into typed detections (see `base.Perception`)."""

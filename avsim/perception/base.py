@@ -1,0 +1,53 @@
+"""The perception interface and its typed detection record."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import mujoco
+
+from avsim.sensors.camera import CameraRig
+
+SIGN_CLASSES = ("stop_sign", "yield", "speed_limit")
+
+
+@dataclass(frozen=True)
+class Detection:
+    """One detected sign.
+
+    box_xyxy_px: (x0, y0, x1, y1) in the camera's image, continuous pixel coordinates.
+    camera: which car camera saw it ("front" or "side").
+    truncated: the box touches the image border, so part of the sign may be cut off
+    and its height is not a safe basis for a range estimate.
+    """
+
+    class_name: str
+    confidence: float
+    box_xyxy_px: tuple[float, float, float, float]
+    camera: str
+    truncated: bool = False
+
+    @property
+    def height_px(self) -> float:
+        return self.box_xyxy_px[3] - self.box_xyxy_px[1]
+
+
+def touches_border(box_xyxy_px: tuple[float, float, float, float], width_px: int, height_px: int, tol_px: float = 1.0) -> bool:
+    """Whether a box lies within `tol_px` of the image border."""
+    x0, y0, x1, y1 = box_xyxy_px
+    return x0 <= tol_px or y0 <= tol_px or x1 >= width_px - tol_px or y1 >= height_px - tol_px
+
+
+class Perception(ABC):
+    """Detects signs in one camera at the current simulation state.
+
+    Implementations render what they need through the `CameraRig` (segmentation for
+    the oracle, RGB for a learned detector), so a run renders nothing it does not use.
+    """
+
+    name: str
+
+    @abstractmethod
+    def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
+        """Detections in `camera`'s view, highest confidence first."""

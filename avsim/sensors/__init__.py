@@ -1,0 +1,1 @@
+"""Cameras on the car: intrinsics, poses, offscreen RGB and segmentation rendering."""

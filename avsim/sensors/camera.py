@@ -1,0 +1,149 @@
+"""Car cameras rendered offscreen with `mujoco.Renderer`.
+
+Conventions
+- Image: pixel (u, v) with u to the right, v down; pixel i covers [i, i + 1), so the
+  principal point of a W x H image is (W / 2, H / 2). Boxes are (x0, y0, x1, y1) in
+  these continuous pixel coordinates.
+- MuJoCo camera frame: looks along -z, y up. OpenCV camera frame (used for
+  `cv2.projectPoints`): x right, y down, z forward = MuJoCo (x, -y, -z).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from avsim.config import CameraConfig, focal_length_px
+from avsim.sensors.gl import OffscreenRenderer
+
+CAMERA_NAMES = ("front", "side")
+# The ego car's own shell is in geom group 2; its cameras do not see it (they sit inside it).
+EGO_GROUP = 2
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics of a camera with square pixels and a centred principal point."""
+
+    width_px: int
+    height_px: int
+    fovy_deg: float
+
+    @property
+    def f_px(self) -> float:
+        """Focal length [px] = (H / 2) / tan(fovy / 2)."""
+        return focal_length_px(self.height_px, self.fovy_deg)
+
+    @property
+    def principal_point_px(self) -> tuple[float, float]:
+        return self.width_px / 2, self.height_px / 2
+
+    def matrix(self) -> np.ndarray:
+        """3x3 camera matrix K."""
+        cx, cy = self.principal_point_px
+        return np.array([[self.f_px, 0.0, cx], [0.0, self.f_px, cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def fovx_deg(self) -> float:
+        return math.degrees(2 * math.atan(self.width_px / 2 / self.f_px))
+
+
+def intrinsics_for(camera: str, config: CameraConfig) -> Intrinsics:
+    fovy = config.fovy_deg if camera == "front" else config.side_fovy_deg
+    return Intrinsics(config.width_px, config.height_px, fovy)
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """Camera pose in the world: position [m] and rotation whose columns are the
+    MuJoCo camera axes (x right, y up, z backwards) in world coordinates."""
+
+    position_m: np.ndarray  # (3,)
+    rotation: np.ndarray  # (3, 3)
+
+    def opencv_extrinsics(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rvec, tvec) mapping world points into the OpenCV camera frame."""
+        import cv2
+
+        r_world_from_cv = self.rotation @ np.diag([1.0, -1.0, -1.0])
+        r_cv_from_world = r_world_from_cv.T
+        rvec, _ = cv2.Rodrigues(r_cv_from_world)
+        return rvec, -r_cv_from_world @ self.position_m
+
+    def depth_m(self, point_world_m: np.ndarray) -> float:
+        """Depth of a world point along the optical axis [m] (the pinhole model's Z)."""
+        return float(-(self.rotation[:, 2] @ (np.asarray(point_world_m) - self.position_m)))
+
+
+class CameraRig:
+    """Renders the car's cameras. One RGB and one segmentation renderer serve both
+    cameras (a renderer is not tied to a camera), created on first use so that a
+    run that needs no RGB never pays for it."""
+
+    def __init__(self, model: mujoco.MjModel, config: CameraConfig, camera_prefix: str = "car/") -> None:
+        self._model = model
+        self._config = config
+        self._ids = {name: model.camera(camera_prefix + name).id for name in CAMERA_NAMES}
+        self._rgb: OffscreenRenderer | None = None
+        self._seg: OffscreenRenderer | None = None
+        self._option = mujoco.MjvOption()
+        self._option.geomgroup[EGO_GROUP] = 0
+        self._option.geomgroup[3] = 0
+
+    def intrinsics(self, camera: str) -> Intrinsics:
+        return intrinsics_for(camera, self._config)
+
+    def pose(self, data: mujoco.MjData, camera: str) -> CameraPose:
+        cid = self._ids[camera]
+        return CameraPose(data.cam_xpos[cid].copy(), data.cam_xmat[cid].reshape(3, 3).copy())
+
+    def render_rgb(self, data: mujoco.MjData, camera: str) -> np.ndarray:
+        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array)."""
+        if self._rgb is None:
+            self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False)
+        return self._rgb.render(data, self._ids[camera], self._option).copy()
+
+    def _render_ids(self, data: mujoco.MjData, camera: str) -> np.ndarray:
+        if self._seg is None:
+            ss = self._config.seg_supersample
+            self._seg = OffscreenRenderer(self._model, self._config.width_px * ss, self._config.height_px * ss, segmentation=True)
+        return self._seg.render(data, self._ids[camera], self._option)
+
+    def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
+        """Model geom id per pixel, (H * s, W * s) int32 with s = seg_supersample; -1 for background."""
+        colours = self._render_ids(data, camera).astype(np.int32)
+        packed = colours[..., 0] | (colours[..., 1] << 8) | (colours[..., 2] << 16)
+        return self._seg.geom_id_lookup()[packed]
+
+    def sign_boxes(self, data: mujoco.MjData, camera: str, geom_ids: dict[str, int]) -> dict[str, tuple[float, float, float, float]]:
+        """Tight box of each named geom's visible pixels from a segmentation render.
+
+        Returns name -> (x0, y0, x1, y1) in RGB-image pixel coordinates, with edges at
+        multiples of 1 / seg_supersample px; geoms with no visible pixel are left out.
+        """
+        colours = self._render_ids(data, camera)
+        segment_values = self._seg.segment_ids_of(list(geom_ids.values()))
+        ss = self._config.seg_supersample
+        boxes = {}
+        for name, value in zip(geom_ids, segment_values):
+            if value == 0:
+                continue
+            # Scenes stay under 256 geoms per 8-bit channel step; compare only what is needed.
+            mask = colours[..., 0] == (value & 0xFF)
+            if value > 0xFF:
+                mask &= (colours[..., 1] == ((value >> 8) & 0xFF)) & (colours[..., 2] == (value >> 16))
+            rows = np.flatnonzero(mask.any(axis=1))
+            if rows.size == 0:
+                continue
+            cols = np.flatnonzero(mask[rows[0]: rows[-1] + 1].any(axis=0))
+            boxes[name] = (cols[0] / ss, rows[0] / ss, (cols[-1] + 1) / ss, (rows[-1] + 1) / ss)
+        return boxes
+
+    def close(self) -> None:
+        for renderer in (self._rgb, self._seg):
+            if renderer is not None:
+                renderer.close()
+        self._rgb = self._seg = None

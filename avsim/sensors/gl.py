@@ -1,0 +1,80 @@
+"""A lean offscreen MuJoCo renderer: one GL context, one scene, a fixed image size.
+
+`mujoco.Renderer` converts every segmentation frame into (object id, type) pairs in
+Python, which costs more than the render itself at our sizes. This renderer keeps
+the raw id-colour image and lets callers decode only the geoms they need.
+"""
+
+from __future__ import annotations
+
+import os
+
+import mujoco
+import numpy as np
+
+from avsim.errors import RenderError
+
+_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+
+
+class OffscreenRenderer:
+    """Renders a model's fixed cameras to (H, W, 3) uint8 arrays, row 0 at the top.
+
+    With `segmentation=True` each pixel's colour encodes (scene geom index + 1) as
+    R + 256 G + 65536 B, and 0 for the background.
+    """
+
+    def __init__(self, model: mujoco.MjModel, width_px: int, height_px: int, segmentation: bool, max_geom: int = 10000) -> None:
+        try:
+            self._gl = mujoco.GLContext(width_px, height_px)
+            self._gl.make_current()
+            self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        except Exception as exc:  # the GL backends raise several unrelated types
+            backend = os.environ.get("MUJOCO_GL", "egl")
+            detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise RenderError(
+                f"cannot start offscreen rendering with MUJOCO_GL={backend} ({detail}); install Mesa's EGL "
+                "(apt-get install libegl1 libgl1-mesa-dri) or run with MUJOCO_GL=osmesa (needs libosmesa6)"
+            ) from None
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
+        self._model = model
+        self._scene = mujoco.MjvScene(model, maxgeom=max_geom)
+        if segmentation:
+            self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 1
+            self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 1
+        self._camera = mujoco.MjvCamera()
+        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self._perturb = mujoco.MjvPerturb()
+        self._rect = mujoco.MjrRect(0, 0, width_px, height_px)
+        self._buffer = np.empty((height_px, width_px, 3), dtype=np.uint8)
+
+    def render(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption) -> np.ndarray:
+        """Render and return a view of the internal buffer (valid until the next call)."""
+        self._gl.make_current()
+        self._camera.fixedcamid = camera_id
+        mujoco.mjv_updateScene(self._model, data, option, self._perturb, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+        mujoco.mjr_render(self._rect, self._scene, self._con)
+        mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
+        return self._buffer[::-1]  # OpenGL rows run bottom-up
+
+    def segment_ids_of(self, geom_ids: list[int]) -> list[int]:
+        """Segment colour value (index + 1) of each model geom in the last rendered scene; 0 if absent."""
+        wanted = {gid: 0 for gid in geom_ids}
+        for i in range(self._scene.ngeom):
+            geom = self._scene.geoms[i]
+            if geom.objtype == _GEOM and geom.objid in wanted:
+                wanted[geom.objid] = geom.segid + 1
+        return [wanted[gid] for gid in geom_ids]
+
+    def geom_id_lookup(self) -> np.ndarray:
+        """Table mapping a segment colour value to the model geom id (-1: background or not a geom)."""
+        table = np.full(self._scene.ngeom + 1, -1, dtype=np.int32)
+        for i in range(self._scene.ngeom):
+            geom = self._scene.geoms[i]
+            if geom.objtype == _GEOM:
+                table[geom.segid + 1] = geom.objid
+        return table
+
+    def close(self) -> None:
+        self._con.free()
+        self._gl.free()

@@ -1,0 +1,34 @@
+"""Camera snapshots: what the car sees at a given distance from the stop line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+
+from avsim.config import SimConfig
+from avsim.loop import ClosedLoop
+from avsim.sensors.camera import CAMERA_NAMES
+
+
+def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: str) -> list[Path]:
+    """Place the car `bumper_to_stop_line_m` before the stop line, at rest, and save
+    `{out_prefix}_{camera}.png` for each camera, with the oracle's boxes drawn."""
+    loop = ClosedLoop(config)
+    try:
+        loop.vehicle.place(loop.scene.stop_line_x_m - bumper_to_stop_line_m - 2.30, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        paths = []
+        for camera in CAMERA_NAMES:
+            image = loop.rig.render_rgb(loop.data, camera)[..., ::-1].copy()  # BGR for OpenCV
+            for det in loop.perception.detect(loop.rig, loop.data, camera):
+                x0, y0, x1, y1 = (int(round(v)) for v in det.box_xyxy_px)
+                cv2.rectangle(image, (x0, y0), (x1, y1), (0, 255, 0), 1)
+                cv2.putText(image, f"{det.class_name} {det.confidence:.2f}", (x0, max(y0 - 4, 10)),
+                            cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 255, 0), 1, cv2.LINE_AA)
+            path = Path(f"{out_prefix}_{camera}.png")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            cv2.imwrite(str(path), image)
+            paths.append(path)
+        return paths
+    finally:
+        loop.close()

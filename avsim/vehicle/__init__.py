@@ -1,0 +1,1 @@
+"""The ego vehicle: named physics readouts and actuation (drive, brakes, steering, resistances)."""

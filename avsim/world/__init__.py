@@ -1,0 +1,1 @@
+"""The world: signs, roads, props and towns, composed into one MuJoCo model."""

@@ -1,0 +1,152 @@
+"""Compose a town, its stop sign and the car into one compiled MuJoCo model.
+
+The scene is fixed by (town, placement, layout seed, sign texture, camera and
+vehicle config); the car's start pose is set later, on MjData, by the loop.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from avsim.config import CameraConfig, SimConfig, VehicleConfig
+from avsim.errors import ConfigError
+from avsim.world import props
+from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
+from avsim.world.signs import SIGN_SHAPES, PlacedSign, add_sign
+from avsim.world.textures import CLEAN_TEXTURE_FILES, TEXTURE_DIR, load_texture_png
+from avsim.world.towns import PLACEMENTS, TOWNS
+from avsim.world.towns.base import SIGN_BOTTOM_M
+
+CAR_XML = Path(__file__).resolve().parents[2] / "models" / "car.xml"
+CAR_PREFIX = "car/"
+STOP_SIGN_NAME = "stop_sign"
+# The sign stands just past the stop line, as at a US junction.
+SIGN_BEYOND_STOP_LINE_M = 1.0
+# Depth range of the cameras [m]: near enough for the hood, far enough for the sky.
+ZNEAR_M, ZFAR_M = 0.2, 1500.0
+# MuJoCo scales znear/zfar/fog by the model extent; fixing it keeps them in metres / 100.
+EXTENT_M = 100.0
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """Facts about a built scene that the loop, policies and metrics need (world frame, m)."""
+
+    town: str
+    placement: str
+    layout: RoadLayout
+    stop_sign: PlacedSign
+    signs: tuple[PlacedSign, ...]
+    stop_line_x_m: float = STOP_LINE_X_M
+
+
+def resolve_sign_texture(sign: str) -> Path:
+    """Path of the stop-sign texture named by `--sign`: 'clean', a name in textures/, or a path."""
+    if sign == "clean":
+        return TEXTURE_DIR / CLEAN_TEXTURE_FILES["stop_sign"]
+    named = TEXTURE_DIR / f"{sign}.png"
+    if "/" not in sign and not sign.endswith(".png"):
+        if not named.is_file():
+            available = sorted(p.stem for p in TEXTURE_DIR.glob("*.png"))
+            raise ConfigError(f"unknown sign texture '{sign}'; use 'clean', a PNG path, or one of: {', '.join(available)}")
+        return named
+    return Path(sign)
+
+
+def build_scene(config: SimConfig) -> tuple[mujoco.MjModel, SceneInfo]:
+    """Build and compile the scene for `config`. Returns the model and its `SceneInfo`."""
+    scenario = config.scenario
+    town = TOWNS.get(scenario.town)
+    lateral_offset_m = PLACEMENTS.get(scenario.placement)
+    stop_texture = load_texture_png(resolve_sign_texture(scenario.sign), expected_aspect=1.0)
+
+    spec = mujoco.MjSpec()
+    spec.modelname = f"avsim_{town.name}_{scenario.placement}"
+    _set_options(spec, config)
+    props.add_materials(spec)
+    props.add_ground(spec, town.ground_material, config.vehicle.tyre_friction)
+    _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
+    add_road(spec, town.layout)
+    rng = np.random.default_rng(scenario.layout_seed)
+    extra_signs = town.build_scenery(spec, town.layout, rng)
+
+    stop_sign = PlacedSign(
+        STOP_SIGN_NAME, "stop_sign",
+        (STOP_LINE_X_M + SIGN_BEYOND_STOP_LINE_M, town.layout.lane_edge_y_m - lateral_offset_m, 0.0),
+        0.0, SIGN_BOTTOM_M,
+    )
+    add_sign(spec, stop_sign, stop_texture)
+    for sign in extra_signs:
+        shape = SIGN_SHAPES[sign.kind]
+        texture = load_texture_png(TEXTURE_DIR / CLEAN_TEXTURE_FILES[sign.kind], expected_aspect=shape.width_m / shape.height_m)
+        add_sign(spec, sign, texture)
+
+    _attach_car(spec, config.vehicle, config.camera)
+    model = spec.compile()
+    info = SceneInfo(town.name, scenario.placement, town.layout, stop_sign, (stop_sign, *extra_signs))
+    return model, info
+
+
+def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
+    spec.option.timestep = config.loop.physics_dt_s
+    # implicitfast keeps the stiff steering servos and wheel contacts stable at 2 ms.
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.stat.extent = EXTENT_M
+    spec.stat.center = [0.0, 0.0, 0.0]
+    spec.visual.map.znear = ZNEAR_M / EXTENT_M
+    spec.visual.map.zfar = ZFAR_M / EXTENT_M
+    # Distant haze; avsim's fog experiments narrow this range.
+    spec.visual.map.fogstart = 3.0
+    spec.visual.map.fogend = 12.0
+    spec.visual.quality.offsamples = config.camera.offsamples
+    cam = config.camera
+    spec.visual.global_.offwidth = cam.width_px * cam.seg_supersample
+    spec.visual.global_.offheight = cam.height_px * cam.seg_supersample
+    spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
+    spec.visual.headlight.diffuse = [0.25, 0.25, 0.25]
+    spec.visual.headlight.specular = [0.0, 0.0, 0.0]
+
+
+def _add_sun(spec: mujoco.MjSpec, elevation_deg: float, azimuth_deg: float) -> None:
+    el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
+    direction = [-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el)]
+    spec.worldbody.add_light(
+        name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, dir=direction, pos=[0, 0, 100],
+        diffuse=[0.75, 0.73, 0.68], ambient=[0.1, 0.1, 0.1], specular=[0.1, 0.1, 0.1], castshadow=False,
+    )
+
+
+def _attach_car(spec: mujoco.MjSpec, vehicle: VehicleConfig, camera: CameraConfig) -> None:
+    car = mujoco.MjSpec.from_file(str(CAR_XML))
+    for geom in car.geoms:
+        if geom.name.startswith("tyre_"):
+            geom.friction[0] = vehicle.tyre_friction
+    car.camera("front").fovy = camera.fovy_deg
+    side = car.camera("side")
+    side.fovy = camera.side_fovy_deg
+    side.quat = _camera_quat(yaw_right_deg=camera.side_yaw_deg)
+    car.camera("front").quat = _camera_quat(yaw_right_deg=0.0)
+    frame = spec.worldbody.add_frame()
+    frame.attach_body(car.body("car"), CAR_PREFIX, "")
+
+
+def _camera_quat(yaw_right_deg: float) -> list[float]:
+    """Orientation of a car camera looking forward (body +x) turned right by `yaw_right_deg`.
+
+    MuJoCo cameras look along their -z axis with +y up; the unturned camera has
+    x_cam = body -y, y_cam = body +z, so -z_cam = body +x.
+    """
+    yaw = -math.radians(yaw_right_deg)
+    c, s = math.cos(yaw), math.sin(yaw)
+    x_cam = np.array([s, -c, 0.0])  # body -y turned by yaw
+    y_cam = np.array([0.0, 0.0, 1.0])
+    z_cam = np.cross(x_cam, y_cam)
+    mat = np.column_stack([x_cam, y_cam, z_cam]).ravel()
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, mat)
+    return quat.tolist()
