@@ -30,6 +30,10 @@ def _parse_set(items: Sequence[str]) -> dict[str, Any]:
         *parents, leaf = key.split(".")
         for part in parents:
             node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"--set {key} conflicts with an earlier --set that gave '{part}' a plain value")
+        if isinstance(node.get(leaf), dict):
+            raise ConfigError(f"--set {key} conflicts with an earlier --set of a key inside '{leaf}'")
         node[leaf] = value
     return overrides
 

@@ -40,6 +40,7 @@ class ClosedLoop:
 
     def __init__(self, config: SimConfig) -> None:
         self.config = config
+        policy_factory = POLICIES.get(config.policy.name)  # fail on a bad name before building anything
         self.model, self.scene = build_scene(config)
         self.data = mujoco.MjData(self.model)
         self.vehicle = Vehicle(self.model, self.data, config.vehicle)
@@ -51,7 +52,7 @@ class ClosedLoop:
             cam_to_bumper_m=FRONT_BUMPER_X_M - cam_x_m,
             control_dt_s=config.loop.control_dt_s,
         )
-        self.policy = POLICIES.get(config.policy.name)(config.policy, context)
+        self.policy = policy_factory(config.policy, context)
         self.cruise = SpeedController(config.scenario.speed_kmh / 3.6)
         self.lane = LaneKeeper(self.scene.layout.lane_center_y_m)
         self.records: list[StepRecord] = []

@@ -19,11 +19,12 @@ class OraclePerception(Perception):
 
     def __init__(self, model: mujoco.MjModel, signs: tuple[PlacedSign, ...], min_box_height_px: float) -> None:
         self._kinds = {sign.name: sign.kind for sign in signs}
-        self._face_ids = {sign.name: model.geom(sign.face_geom).id for sign in signs}
+        # Face geom and outline corners per sign: the corners bound the pixels read back.
+        self._faces = {sign.name: (model.geom(sign.face_geom).id, sign.corners_m()) for sign in signs}
         self._min_box_height_px = min_box_height_px
 
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
-        boxes = rig.sign_boxes(data, camera, self._face_ids)
+        boxes = rig.sign_boxes(data, camera, self._faces)
         size = rig.intrinsics(camera)
         detections = [
             Detection(self._kinds[name], 1.0, box, camera, touches_border(box, size.width_px, size.height_px))

@@ -106,41 +106,71 @@ class CameraRig:
             self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False)
         return self._rgb.render(data, self._ids[camera], self._option).copy()
 
-    def _render_ids(self, data: mujoco.MjData, camera: str) -> np.ndarray:
+    def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
+        """Model geom id per pixel, (H * s, W * s) int32 with s = seg_supersample; -1 for background."""
         if self._seg is None:
             ss = self._config.seg_supersample
             self._seg = OffscreenRenderer(self._model, self._config.width_px * ss, self._config.height_px * ss, segmentation=True)
-        return self._seg.render(data, self._ids[camera], self._option)
-
-    def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
-        """Model geom id per pixel, (H * s, W * s) int32 with s = seg_supersample; -1 for background."""
-        colours = self._render_ids(data, camera).astype(np.int32)
+        colours = self._seg.render(data, self._ids[camera], self._option).astype(np.int32)
         packed = colours[..., 0] | (colours[..., 1] << 8) | (colours[..., 2] << 16)
         return self._seg.geom_id_lookup()[packed]
 
-    def sign_boxes(self, data: mujoco.MjData, camera: str, geom_ids: dict[str, int]) -> dict[str, tuple[float, float, float, float]]:
-        """Tight box of each named geom's visible pixels from a segmentation render.
+    def sign_boxes(self, data: mujoco.MjData, camera: str, signs: dict[str, tuple[int, np.ndarray]]) -> dict[str, tuple[float, float, float, float]]:
+        """Tight box of each sign face's visible pixels, from a segmentation render.
 
+        signs: name -> (face geom id, (N, 3) world points enclosing the face). The points
+        only bound the part of the image read back; the box comes from the segmentation
+        pixels, so occluded parts of a sign are left out of it.
         Returns name -> (x0, y0, x1, y1) in RGB-image pixel coordinates, with edges at
-        multiples of 1 / seg_supersample px; geoms with no visible pixel are left out.
+        multiples of 1 / seg_supersample px; signs with no visible pixel are left out.
         """
-        colours = self._render_ids(data, camera)
-        segment_values = self._seg.segment_ids_of(list(geom_ids.values()))
         ss = self._config.seg_supersample
+        width, height = self._config.width_px * ss, self._config.height_px * ss
+        pose = self.pose(data, camera)
+        regions = {name: self._project_bounds(pose, camera, pts, ss) for name, (_, pts) in signs.items()}
+        regions = {name: r for name, r in regions.items() if r is not None}
+        if not regions:
+            return {}
+        x0 = min(r[0] for r in regions.values())
+        y0 = min(r[1] for r in regions.values())
+        x1 = max(r[2] for r in regions.values())
+        y1 = max(r[3] for r in regions.values())
+        if self._seg is None:
+            self._seg = OffscreenRenderer(self._model, width, height, segmentation=True)
+        colours = self._seg.render(data, self._ids[camera], self._option, (x0, y0, x1, y1))
+        values = self._seg.segment_ids_of([signs[name][0] for name in regions])
+        one_channel = self._seg.scene_geom_count < 0xFF
         boxes = {}
-        for name, value in zip(geom_ids, segment_values):
+        for name, value in zip(regions, values):
             if value == 0:
                 continue
-            # Scenes stay under 256 geoms per 8-bit channel step; compare only what is needed.
             mask = colours[..., 0] == (value & 0xFF)
-            if value > 0xFF:
+            if not one_channel:  # ids above 255 spill into G and B
                 mask &= (colours[..., 1] == ((value >> 8) & 0xFF)) & (colours[..., 2] == (value >> 16))
             rows = np.flatnonzero(mask.any(axis=1))
             if rows.size == 0:
                 continue
             cols = np.flatnonzero(mask[rows[0]: rows[-1] + 1].any(axis=0))
-            boxes[name] = (cols[0] / ss, rows[0] / ss, (cols[-1] + 1) / ss, (rows[-1] + 1) / ss)
+            boxes[name] = ((x0 + cols[0]) / ss, (y0 + rows[0]) / ss, (x0 + cols[-1] + 1) / ss, (y0 + rows[-1] + 1) / ss)
         return boxes
+
+    def _project_bounds(self, pose: CameraPose, camera: str, points_m: np.ndarray, ss: int) -> tuple[int, int, int, int] | None:
+        """Pixel rectangle (x0, y0, x1, y1) at seg resolution enclosing the projected points,
+        padded by 2 px and clipped to the image; None if entirely outside the view."""
+        width, height = self._config.width_px * ss, self._config.height_px * ss
+        cam = (np.asarray(points_m) - pose.position_m) @ pose.rotation  # MuJoCo camera frame
+        depth = -cam[:, 2]
+        if (depth <= 0).all():
+            return None
+        if (depth <= 0).any():  # straddles the camera plane: no safe bound, read it all
+            return 0, 0, width, height
+        f = self.intrinsics(camera).f_px * ss
+        u = width / 2 + f * cam[:, 0] / depth
+        v = height / 2 - f * cam[:, 1] / depth
+        x0, x1 = int(np.floor(u.min())) - 2, int(np.ceil(u.max())) + 2
+        y0, y1 = int(np.floor(v.min())) - 2, int(np.ceil(v.max())) + 2
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, width), min(y1, height)
+        return (x0, y0, x1, y1) if x0 < x1 and y0 < y1 else None
 
     def close(self) -> None:
         for renderer in (self._rgb, self._seg):

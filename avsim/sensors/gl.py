@@ -48,14 +48,31 @@ class OffscreenRenderer:
         self._rect = mujoco.MjrRect(0, 0, width_px, height_px)
         self._buffer = np.empty((height_px, width_px, 3), dtype=np.uint8)
 
-    def render(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption) -> np.ndarray:
-        """Render and return a view of the internal buffer (valid until the next call)."""
+    def render(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption,
+               region: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """Render, and read back the whole image or only `region` = (x0, y0, x1, y1).
+
+        region is in image pixels (row 0 at the top), end-exclusive. Reading back is the
+        larger part of a frame's cost on a software rasteriser, so callers that need a
+        small part of the image ask only for it. Returns a view of an internal buffer,
+        valid until the next call, of shape (y1 - y0, x1 - x0, 3).
+        """
         self._gl.make_current()
         self._camera.fixedcamid = camera_id
         mujoco.mjv_updateScene(self._model, data, option, self._perturb, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
         mujoco.mjr_render(self._rect, self._scene, self._con)
-        mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
-        return self._buffer[::-1]  # OpenGL rows run bottom-up
+        if region is None:
+            mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
+            return self._buffer[::-1]  # OpenGL rows run bottom-up
+        x0, y0, x1, y1 = region
+        height = self._rect.height
+        out = self._buffer.reshape(-1)[: (y1 - y0) * (x1 - x0) * 3].reshape(y1 - y0, x1 - x0, 3)
+        mujoco.mjr_readPixels(out, None, mujoco.MjrRect(x0, height - y1, x1 - x0, y1 - y0), self._con)
+        return out[::-1]
+
+    @property
+    def scene_geom_count(self) -> int:
+        return self._scene.ngeom
 
     def segment_ids_of(self, geom_ids: list[int]) -> list[int]:
         """Segment colour value (index + 1) of each model geom in the last rendered scene; 0 if absent."""

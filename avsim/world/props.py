@@ -131,8 +131,9 @@ def add_parked_car(spec: mujoco.MjSpec, name: str, x: float, y: float, yaw_rad: 
     c, s = math.cos(yaw_rad), math.sin(yaw_rad)
     _geom(spec, name, BOX, (x, y, 0.65), (2.3, 0.9, 0.35), rgba=(*paint, 1), quat=quat)
     _geom(spec, f"{name}/cabin", BOX, (x - 0.3 * c, y - 0.3 * s, 1.22), (1.2, 0.8, 0.25), "glass", quat=quat)
-    for k, (dx, dy) in enumerate(((1.4, 0.8), (1.4, -0.8), (-1.3, 0.8), (-1.3, -0.8))):
-        _geom(spec, f"{name}/wheel_{k}", CYL, (x + c * dx - s * dy, y + s * dx + c * dy, 0.33), (0.33, 0.1),
+    # One axle-long cylinder per axle shows both wheels (half the draw calls of four wheels).
+    for k, dx in enumerate((1.4, -1.3)):
+        _geom(spec, f"{name}/axle_{k}", CYL, (x + c * dx, y + s * dx, 0.33), (0.33, 0.9),
               "dark_metal", quat=_cyl_quat_lateral(yaw_rad))
 
 

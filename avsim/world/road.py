@@ -15,12 +15,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 
 APPROACH_LENGTH_M = 320.0
 ROAD_END_X_M = 60.0  # the road continues past the intersection
 STOP_LINE_X_M = 0.0
 STOP_LINE_WIDTH_M = 0.45
 PAINT_Z_M = 0.01
+DASH_LENGTH_M, DASH_PERIOD_M = 3.0, 9.0
+DASHED_LENGTH_M = 150.0  # lane dividers are painted this far back from the stop line
 BOX = mujoco.mjtGeom.mjGEOM_BOX
 
 
@@ -74,7 +77,6 @@ def add_road(spec: mujoco.MjSpec, layout: RoadLayout) -> None:
 
     # Lane lines on the approach only (they stop at the stop line, as painted).
     lw = layout.lane_width_m
-    dash_len, gap = 3.0, 6.0
     for side in (-1, 1):
         base = side * layout.median_width_m / 2
         # Centre line (yellow) or median edge.
@@ -85,13 +87,11 @@ def add_road(spec: mujoco.MjSpec, layout: RoadLayout) -> None:
         _box(spec, f"road/edge_line_{side}", ((STOP_LINE_X_M - APPROACH_LENGTH_M) / 2, edge_y - side * 0.1, PAINT_Z_M / 2),
              (APPROACH_LENGTH_M / 2, 0.075, PAINT_Z_M / 2), "paint_white")
         for lane in range(1, layout.lanes_per_direction):
+            # Dashes only where a camera can resolve them: each is a draw call.
             y = side * (layout.median_width_m / 2 + lane * lw)
-            x = STOP_LINE_X_M - 10.0
-            k = 0
-            while x - dash_len > -APPROACH_LENGTH_M:
-                _box(spec, f"road/dash_{side}_{lane}_{k}", (x - dash_len / 2, y, PAINT_Z_M / 2), (dash_len / 2, 0.075, PAINT_Z_M / 2), "paint_white")
-                x -= dash_len + gap
-                k += 1
+            for k, x in enumerate(np.arange(STOP_LINE_X_M - 10.0, STOP_LINE_X_M - DASHED_LENGTH_M, -DASH_PERIOD_M)):
+                _box(spec, f"road/dash_{side}_{lane}_{k}", (x - DASH_LENGTH_M / 2, y, PAINT_Z_M / 2),
+                     (DASH_LENGTH_M / 2, 0.075, PAINT_Z_M / 2), "paint_white")
     if layout.median_width_m:
         _box(spec, "road/median", ((STOP_LINE_X_M - 12 - APPROACH_LENGTH_M) / 2, 0, 0.075),
              ((APPROACH_LENGTH_M - 12) / 2, layout.median_width_m / 2 - 0.3, 0.075), "kerb")

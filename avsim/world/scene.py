@@ -104,6 +104,10 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
     spec.visual.map.fogstart = 3.0
     spec.visual.map.fogend = 12.0
     spec.visual.quality.offsamples = config.camera.offsamples
+    # Software rasterisers are vertex-bound on our scenes: coarser spheres and
+    # cylinders (trees, posts) cost little in looks and save about a third of a frame.
+    spec.visual.quality.numslices = 12
+    spec.visual.quality.numstacks = 6
     cam = config.camera
     spec.visual.global_.offwidth = cam.width_px * cam.seg_supersample
     spec.visual.global_.offheight = cam.height_px * cam.seg_supersample

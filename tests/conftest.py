@@ -1,0 +1,31 @@
+"""Shared helpers: cached closed-loop runs so several tests can assert on one run."""
+
+from __future__ import annotations
+
+import functools
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import pytest  # noqa: E402
+
+from avsim.config import SimConfig, with_overrides  # noqa: E402
+from avsim.loop import run_config  # noqa: E402
+from avsim.metrics import RunResult  # noqa: E402
+
+
+def make_config(**sections) -> SimConfig:
+    """SimConfig with per-section overrides, e.g. make_config(scenario={"town": "town03"})."""
+    return with_overrides(SimConfig(), sections)
+
+
+@functools.lru_cache(maxsize=None)
+def _cached_run(town: str, placement: str, policy: str, seed: int) -> RunResult:
+    config = make_config(scenario={"town": town, "placement": placement, "seed": seed}, policy={"name": policy})
+    return run_config(config)[0]
+
+
+@pytest.fixture
+def study_run():
+    """run(town, placement, policy, seed=0) -> RunResult, at the default 85 km/h, cached per session."""
+    return lambda town, placement, policy, seed=0: _cached_run(town, placement, policy, seed)
