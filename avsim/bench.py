@@ -50,11 +50,12 @@ def run_benchmarks(quick: bool = False) -> None:
     print(f"  front camera RGB render          {_frames_per_s(base, frames, False):10.1f} frames/s       (target >= 40)")
     print(f"  front camera full segmentation   {_frames_per_s(base, frames, True):10.1f} frames/s       "
           f"({base.camera.seg_supersample}x supersampled, whole image decoded)")
-    for label, policy in (("one camera (baseline)", "baseline"), ("two cameras (side_camera)", "side_camera")):
-        config = with_overrides(base, {"policy": {"name": policy}, "perception": {"kind": "oracle"}})
-        result, wall_s = run_config(config)
-        print(f"  closed loop, oracle, {label:26s} {result.sim_time_s / wall_s:5.1f}x real time "
-              f"({result.sim_time_s:.1f} s simulated in {wall_s:.1f} s; target >= 3 for one camera)")
+    for town in ("town07", "town10"):
+        for label, policy in (("one camera (baseline)", "baseline"), ("two cameras (side_camera)", "side_camera")):
+            config = with_overrides(base, {"scenario": {"town": town}, "policy": {"name": policy}, "perception": {"kind": "oracle"}})
+            result, wall_s = run_config(config)
+            print(f"  closed loop, oracle, {town}, {label:26s} {result.sim_time_s / wall_s:5.1f}x real time "
+                  f"({result.sim_time_s:.1f} s simulated in {wall_s:.1f} s; target >= 3 for one camera)")
 
 
 if __name__ == "__main__":

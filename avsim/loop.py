@@ -33,6 +33,8 @@ from avsim.world.scene import build_scene
 # A car past the sign by this much without braking has certainly run it [m].
 RAN_PAST_SIGN_M = 40.0
 MAX_PLAUSIBLE_SPEED_MPS = 100.0
+_INSTABILITY_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                         mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADCTRL)
 
 
 class ClosedLoop:
@@ -101,8 +103,10 @@ class ClosedLoop:
         return Controls(throttle=throttle, brake=decision.brake, steer_rad=steer)
 
     def _check_physics(self) -> None:
-        bad_qacc = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
-        if not self.vehicle.is_finite() or bad_qacc:
+        # MuJoCo resets the state by itself when it meets NaN or huge values, so a finite
+        # state is not proof of health: its instability warnings are.
+        unstable = any(self.data.warning[w].number > 0 for w in _INSTABILITY_WARNINGS)
+        if not self.vehicle.is_finite() or unstable:
             raise PhysicsError(f"physics diverged at t = {self.time_s:.2f} s (NaN or bad acceleration); lower loop.physics_dt_s")
         if abs(self.vehicle.speed_mps()) > MAX_PLAUSIBLE_SPEED_MPS:
             raise PhysicsError(f"physics diverged at t = {self.time_s:.2f} s (speed {self.vehicle.speed_mps():.0f} m/s); lower loop.physics_dt_s")

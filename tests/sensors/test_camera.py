@@ -1,0 +1,128 @@
+"""Cameras: intrinsics, poses, segmentation boxes against geometry, and rendered pixels."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from avsim.control.pinhole import pinhole_distance_m
+from avsim.errors import RenderError
+from avsim.loop import ClosedLoop
+from avsim.sensors import gl
+from avsim.sensors.camera import Intrinsics
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from conftest import make_config
+
+
+@pytest.fixture(scope="module")
+def near_scene():
+    """town07 with the sign at the `near` placement, so it stays in view down to 10 m."""
+    loop = ClosedLoop(make_config(scenario={"placement": "near"}))
+    yield loop
+    loop.close()
+
+
+def _put_camera_at_depth(loop: ClosedLoop, depth_m: float, camera: str = "front") -> None:
+    """Place the car so the sign face is `depth_m` ahead of the camera along the road."""
+    cam_x = float(loop.model.cam_pos[loop.model.camera(f"car/{camera}").id][0])
+    face_x = loop.scene.stop_sign.face_center_m[0]
+    loop.vehicle.place(face_x - depth_m - cam_x, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+
+
+def _stop_box(loop, camera="front"):
+    sign = loop.scene.stop_sign
+    faces = {sign.name: (loop.model.geom(sign.face_geom).id, sign.corners_m())}
+    return loop.rig.sign_boxes(loop.data, camera, faces).get(sign.name)
+
+
+def test_intrinsics_follow_the_pinhole_formula():
+    intr = Intrinsics(640, 480, 30.0)
+    assert intr.f_px == pytest.approx(240 / math.tan(math.radians(15)))
+    assert intr.principal_point_px == (320.0, 240.0)
+    assert np.allclose(intr.matrix(), [[intr.f_px, 0, 320], [0, intr.f_px, 240], [0, 0, 1]])
+
+
+def test_default_camera_sees_a_stop_sign_at_least_15_px_tall_at_40_m():
+    intr = Intrinsics(640, 480, make_config().camera.fovy_deg)
+    assert 0.762 * intr.f_px / 40.0 >= 15.0
+
+
+def test_front_camera_sits_behind_the_windscreen_at_1_4_to_1_5_m(near_scene):
+    pose = near_scene.rig.pose(near_scene.data, "front")
+    assert 1.4 <= pose.position_m[2] <= 1.5
+
+
+def test_side_camera_is_yawed_towards_the_right_roadside(near_scene):
+    pose = near_scene.rig.pose(near_scene.data, "side")
+    forward = -pose.rotation[:, 2]
+    yaw_right_deg = math.degrees(math.atan2(-forward[1], forward[0]))
+    assert yaw_right_deg == pytest.approx(near_scene.config.camera.side_yaw_deg, abs=1e-6)
+
+
+@pytest.mark.parametrize("depth_m", [10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 60.0])
+def test_pinhole_distance_from_ground_truth_box_is_within_5_percent(near_scene, depth_m):
+    _put_camera_at_depth(near_scene, depth_m)
+    box = _stop_box(near_scene)
+    assert box is not None
+    f_px = near_scene.rig.intrinsics("front").f_px
+    true_depth = near_scene.rig.pose(near_scene.data, "front").depth_m(near_scene.scene.stop_sign.face_center_m)
+    estimate = pinhole_distance_m(0.762, f_px, box[3] - box[1])
+    assert estimate == pytest.approx(true_depth, rel=0.05)
+
+
+@pytest.mark.parametrize("camera", ["front", "side"])
+@pytest.mark.parametrize("depth_m", [15.0, 30.0, 50.0])
+def test_projected_sign_corners_land_within_2_px_of_segmentation_box(near_scene, camera, depth_m):
+    _put_camera_at_depth(near_scene, depth_m, camera)
+    box = _stop_box(near_scene, camera)
+    assert box is not None
+    pose = near_scene.rig.pose(near_scene.data, camera)
+    rvec, tvec = pose.opencv_extrinsics()
+    corners = near_scene.scene.stop_sign.corners_m()
+    pixels, _ = cv2.projectPoints(corners, rvec, tvec, near_scene.rig.intrinsics(camera).matrix(), None)
+    pixels = pixels.reshape(-1, 2)
+    projected = (pixels[:, 0].min(), pixels[:, 1].min(), pixels[:, 0].max(), pixels[:, 1].max())
+    assert np.allclose(projected, box, atol=2.0)
+
+
+def _aim_car_at_sign(loop: ClosedLoop, x_m: float, y_m: float) -> None:
+    sign = loop.scene.stop_sign.base_pos_m
+    loop.vehicle.place(x_m, y_m, math.atan2(sign[1] - y_m, sign[0] - x_m), 0.0)
+
+
+def test_segmentation_box_respects_occlusion_by_buildings():
+    loop = ClosedLoop(make_config(scenario={"town": "town03"}))
+    sign_x, edge_y = loop.scene.stop_sign.base_pos_m[0], loop.scene.layout.lane_edge_y_m
+    _aim_car_at_sign(loop, sign_x - 25.0, edge_y - 3.0)  # on the sidewalk: clear view
+    assert _stop_box(loop) is not None
+    _aim_car_at_sign(loop, sign_x - 25.0, edge_y - 60.0)  # behind the right-hand block
+    assert _stop_box(loop) is None
+    loop.close()
+
+
+def test_rgb_render_shows_a_red_sign_inside_its_box(near_scene):
+    _put_camera_at_depth(near_scene, 20.0)
+    image = near_scene.rig.render_rgb(near_scene.data, "front")
+    assert image.shape == (480, 640, 3) and image.dtype == np.uint8
+    x0, y0, x1, y1 = (int(round(v)) for v in _stop_box(near_scene))
+    patch = image[y0:y1, x0:x1].reshape(-1, 3).astype(int)
+    red = (patch[:, 0] > 120) & (patch[:, 1] < 80) & (patch[:, 2] < 90)
+    assert red.mean() > 0.4
+
+
+def test_ego_car_shell_is_not_in_its_own_camera(near_scene):
+    _put_camera_at_depth(near_scene, 200.0)
+    seg = near_scene.rig.render_segmentation(near_scene.data, "front")
+    ego = {g for g in range(near_scene.model.ngeom) if near_scene.model.geom(g).name.startswith("car/") or near_scene.model.geom_bodyid[g] != 0 and near_scene.model.body(near_scene.model.geom_bodyid[g]).name.startswith("car/")}
+    assert not np.isin(seg, list(ego)).any()
+
+
+def test_missing_gl_backend_gives_a_one_line_render_error(monkeypatch):
+    def no_gl(*args, **kwargs):
+        raise RuntimeError("eglInitialize failed\nsecond line")
+    monkeypatch.setattr(gl.mujoco, "GLContext", no_gl)
+    loop = ClosedLoop(make_config())
+    with pytest.raises(RenderError) as err:
+        loop.rig.render_rgb(loop.data, "front")
+    assert "\n" not in str(err.value) and "MUJOCO_GL" in str(err.value) and "osmesa" in str(err.value)
