@@ -48,6 +48,10 @@ class ScenarioConfig:
     start_jitter_m: float = 2.0
     sun_elevation_deg: float = 50.0
     sun_azimuth_deg: float = 30.0
+    sun_intensity: float = 1.0  # scales the sun's diffuse light
+    # Linear fog from fog_start_m to fog_end_m [m] of distance; fog_end_m = 0 means clear air.
+    fog_start_m: float = 0.0
+    fog_end_m: float = 0.0
 
     def __post_init__(self) -> None:
         _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
@@ -56,6 +60,9 @@ class ScenarioConfig:
         _require(self.seed >= 0 and self.layout_seed >= 0, f"scenario.seed and scenario.layout_seed must be >= 0, got {self.seed}, {self.layout_seed}")
         _require(0 <= self.start_jitter_m <= 10, f"scenario.start_jitter_m must be in [0, 10], got {self.start_jitter_m}")
         _require(5 <= self.sun_elevation_deg <= 90, f"scenario.sun_elevation_deg must be in [5, 90], got {self.sun_elevation_deg}")
+        _require(0.1 <= self.sun_intensity <= 2.0, f"scenario.sun_intensity must be in [0.1, 2], got {self.sun_intensity}")
+        _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
+                 f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
 
 
 @dataclass(frozen=True)

@@ -83,8 +83,9 @@ class CameraRig:
     cameras (a renderer is not tied to a camera), created on first use so that a
     run that needs no RGB never pays for it."""
 
-    def __init__(self, model: mujoco.MjModel, config: CameraConfig, camera_prefix: str = "car/") -> None:
+    def __init__(self, model: mujoco.MjModel, config: CameraConfig, camera_prefix: str = "car/", fog: bool = False) -> None:
         self._model = model
+        self._fog = fog
         self._config = config
         self._ids = {name: model.camera(camera_prefix + name).id for name in CAMERA_NAMES}
         self._rgb: OffscreenRenderer | None = None
@@ -103,7 +104,7 @@ class CameraRig:
     def render_rgb(self, data: mujoco.MjData, camera: str) -> np.ndarray:
         """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array)."""
         if self._rgb is None:
-            self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False)
+            self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False, fog=self._fog)
         return self._rgb.render(data, self._ids[camera], self._option).copy()
 
     def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:

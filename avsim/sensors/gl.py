@@ -24,7 +24,8 @@ class OffscreenRenderer:
     R + 256 G + 65536 B, and 0 for the background.
     """
 
-    def __init__(self, model: mujoco.MjModel, width_px: int, height_px: int, segmentation: bool, max_geom: int = 10000) -> None:
+    def __init__(self, model: mujoco.MjModel, width_px: int, height_px: int, segmentation: bool,
+                 fog: bool = False, max_geom: int = 10000) -> None:
         try:
             self._gl = mujoco.GLContext(width_px, height_px)
             self._gl.make_current()
@@ -42,6 +43,8 @@ class OffscreenRenderer:
         if segmentation:
             self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 1
             self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 1
+        # Fog would blend id colours, so it is only ever drawn in colour renders.
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = int(fog and not segmentation)
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._perturb = mujoco.MjvPerturb()

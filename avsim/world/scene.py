@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -40,7 +41,7 @@ class SceneInfo:
     town: str
     placement: str
     layout: RoadLayout
-    stop_sign: PlacedSign
+    stop_sign: PlacedSign  # the sign at the stop line (a stop sign in every driving scenario)
     signs: tuple[PlacedSign, ...]
     stop_line_x_m: float = STOP_LINE_X_M
 
@@ -60,36 +61,54 @@ def resolve_sign_texture(sign: str) -> Path:
 
 def build_scene(config: SimConfig) -> tuple[mujoco.MjModel, SceneInfo]:
     """Build and compile the scene for `config`. Returns the model and its `SceneInfo`."""
+    spec, info = compose_scene(config)
+    return spec.compile(), info
+
+
+def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
+                  add_extras: Callable[[mujoco.MjSpec, SceneInfo], None] | None = None) -> tuple[mujoco.MjSpec, SceneInfo]:
+    """The uncompiled scene for `config`.
+
+    target_kind: the sign at the stop line. It is a stop sign in every driving scenario;
+    detector training data puts other kinds there too (a clean texture of that kind).
+    add_extras: called before the car is attached, to add props (e.g. distractors).
+    """
     scenario = config.scenario
     town = TOWNS.get(scenario.town)
     lateral_offset_m = PLACEMENTS.get(scenario.placement)
-    stop_texture = load_texture_png(resolve_sign_texture(scenario.sign), expected_aspect=1.0)
+    if target_kind == "stop_sign":
+        target_texture = load_texture_png(resolve_sign_texture(scenario.sign), expected_aspect=1.0)
+    else:
+        target_texture = _clean_texture(target_kind)
 
     spec = mujoco.MjSpec()
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
     props.add_materials(spec)
     props.add_ground(spec, town.ground_material, config.vehicle.tyre_friction)
-    _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
+    _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
     add_road(spec, town.layout)
     rng = np.random.default_rng(scenario.layout_seed)
     extra_signs = town.build_scenery(spec, town.layout, rng)
 
-    stop_sign = PlacedSign(
-        STOP_SIGN_NAME, "stop_sign",
+    target = PlacedSign(
+        STOP_SIGN_NAME if target_kind == "stop_sign" else f"target_{target_kind}", target_kind,
         (STOP_LINE_X_M + SIGN_BEYOND_STOP_LINE_M, town.layout.lane_edge_y_m - lateral_offset_m, 0.0),
         0.0, SIGN_BOTTOM_M,
     )
-    add_sign(spec, stop_sign, stop_texture)
+    add_sign(spec, target, target_texture)
     for sign in extra_signs:
-        shape = SIGN_SHAPES[sign.kind]
-        texture = load_texture_png(TEXTURE_DIR / CLEAN_TEXTURE_FILES[sign.kind], expected_aspect=shape.width_m / shape.height_m)
-        add_sign(spec, sign, texture)
-
+        add_sign(spec, sign, _clean_texture(sign.kind))
+    info = SceneInfo(town.name, scenario.placement, town.layout, target, (target, *extra_signs))
+    if add_extras is not None:
+        add_extras(spec, info)
     _attach_car(spec, config.vehicle, config.camera)
-    model = spec.compile()
-    info = SceneInfo(town.name, scenario.placement, town.layout, stop_sign, (stop_sign, *extra_signs))
-    return model, info
+    return spec, info
+
+
+def _clean_texture(kind: str) -> np.ndarray:
+    shape = SIGN_SHAPES[kind]
+    return load_texture_png(TEXTURE_DIR / CLEAN_TEXTURE_FILES[kind], expected_aspect=shape.width_m / shape.height_m)
 
 
 def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
@@ -100,9 +119,11 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
     spec.stat.center = [0.0, 0.0, 0.0]
     spec.visual.map.znear = ZNEAR_M / EXTENT_M
     spec.visual.map.zfar = ZFAR_M / EXTENT_M
-    # Distant haze; avsim's fog experiments narrow this range.
-    spec.visual.map.fogstart = 3.0
-    spec.visual.map.fogend = 12.0
+    # Fog is drawn only when scenario.fog_end_m > 0 (see CameraRig); colour of an overcast haze.
+    if config.scenario.fog_end_m > 0:
+        spec.visual.map.fogstart = config.scenario.fog_start_m / EXTENT_M
+        spec.visual.map.fogend = config.scenario.fog_end_m / EXTENT_M
+    spec.visual.rgba.fog = [0.78, 0.8, 0.83, 1.0]
     spec.visual.quality.offsamples = config.camera.offsamples
     # Software rasterisers are vertex-bound on our scenes: coarser spheres and
     # cylinders (trees, posts) cost little in looks and save about a third of a frame.
@@ -116,12 +137,13 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
     spec.visual.headlight.specular = [0.0, 0.0, 0.0]
 
 
-def _add_sun(spec: mujoco.MjSpec, elevation_deg: float, azimuth_deg: float) -> None:
+def _add_sun(spec: mujoco.MjSpec, elevation_deg: float, azimuth_deg: float, intensity: float) -> None:
     el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
     direction = [-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el)]
     spec.worldbody.add_light(
         name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, dir=direction, pos=[0, 0, 100],
-        diffuse=[0.75, 0.73, 0.68], ambient=[0.1, 0.1, 0.1], specular=[0.1, 0.1, 0.1], castshadow=False,
+        diffuse=[0.75 * intensity, 0.73 * intensity, 0.68 * intensity], ambient=[0.1, 0.1, 0.1],
+        specular=[0.1, 0.1, 0.1], castshadow=False,
     )
 
 
