@@ -7,6 +7,7 @@ exit code (2 for bad input) and no output file written.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tomllib
 from collections.abc import Sequence
@@ -100,6 +101,30 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_make_data(args: argparse.Namespace) -> int:
+    from avsim.perception.datagen import DataGenConfig, make_dataset
+
+    config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
+                           seed=args.seed, workers=args.workers)
+    out = make_dataset(args.out, config, overwrite=args.overwrite)
+    print(f"wrote {config.n_train} training and {config.n_val} validation images to {out}")
+    return 0
+
+
+def _add_detector_commands(sub) -> None:
+    detector = sub.add_parser("detector", help="make data for, train and evaluate the sign detector")
+    dsub = detector.add_subparsers(dest="detector_command", required=True)
+    data = dsub.add_parser("make-data", help="render labelled sign images (boxes from segmentation)")
+    data.add_argument("--out", default="data/signs", help="dataset directory (default data/signs)")
+    data.add_argument("--train", type=int, default=6000, help="training images")
+    data.add_argument("--val", type=int, default=1000, help="validation images (held-out town seed and lighting)")
+    data.add_argument("--images-per-scene", type=int, default=25)
+    data.add_argument("--seed", type=int, default=0)
+    data.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    data.add_argument("--overwrite", action="store_true", help="replace an existing dataset directory")
+    data.set_defaults(func=_cmd_make_data)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -120,6 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.set_defaults(func=_cmd_bench)
+    _add_detector_commands(sub)
     return parser
 
 

@@ -1,0 +1,61 @@
+"""Detector data generation: labels, the held-out split, determinism, no half-written output."""
+
+import json
+
+import pytest
+
+from avsim.errors import ConfigError
+from avsim.perception.base import SIGN_CLASSES
+from avsim.perception.datagen import VAL_LAYOUT_SEED, VAL_SUN_ELEVATION_DEG, DataGenConfig, make_dataset
+
+TINY = DataGenConfig(n_train=6, n_val=4, images_per_scene=3, seed=7, workers=1)
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory):
+    return make_dataset(tmp_path_factory.mktemp("data") / "signs", TINY)
+
+
+def _records(root, split):
+    return [json.loads(line) for line in (root / f"{split}.jsonl").read_text().splitlines()]
+
+
+def test_every_image_has_a_record_with_valid_boxes(tiny_dataset):
+    for split, count in (("train", 6), ("val", 4)):
+        records = _records(tiny_dataset, split)
+        assert len(records) == count
+        for record in records:
+            assert (tiny_dataset / record["image"]).is_file()
+            assert len(record["boxes"]) == len(record["classes"])
+            for (x0, y0, x1, y1), cls in zip(record["boxes"], record["classes"]):
+                assert cls in SIGN_CLASSES
+                assert 0 <= x0 < x1 <= 640 and 0 <= y0 < y1 <= 480
+                assert y1 - y0 >= 4.0
+
+
+def test_validation_split_is_held_out_by_town_seed_and_lighting(tiny_dataset):
+    low, high = VAL_SUN_ELEVATION_DEG
+    for record in _records(tiny_dataset, "val"):
+        assert record["meta"]["layout_seed"] == VAL_LAYOUT_SEED
+        assert low <= record["meta"]["sun_elevation_deg"] < high
+    for record in _records(tiny_dataset, "train"):
+        assert record["meta"]["layout_seed"] != VAL_LAYOUT_SEED
+        assert not low <= record["meta"]["sun_elevation_deg"] < high
+
+
+def test_same_seed_gives_the_same_dataset(tiny_dataset, tmp_path):
+    again = make_dataset(tmp_path / "again", TINY)
+    assert (again / "train.jsonl").read_text() == (tiny_dataset / "train.jsonl").read_text()
+    first = _records(tiny_dataset, "train")[0]["image"]
+    assert (again / first).read_bytes() == (tiny_dataset / first).read_bytes()
+
+
+def test_existing_output_is_refused_and_nothing_partial_is_left(tiny_dataset):
+    with pytest.raises(ConfigError, match="already exists"):
+        make_dataset(tiny_dataset, TINY)
+    assert not tiny_dataset.with_name(tiny_dataset.name + ".partial").exists()
+
+
+def test_bad_counts_are_config_errors():
+    with pytest.raises(ConfigError):
+        DataGenConfig(n_train=0, n_val=0)
