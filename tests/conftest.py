@@ -15,17 +15,25 @@ from avsim.metrics import RunResult  # noqa: E402
 
 
 def make_config(**sections) -> SimConfig:
-    """SimConfig with per-section overrides, e.g. make_config(scenario={"town": "town03"})."""
+    """SimConfig with per-section overrides, e.g. make_config(scenario={"town": "town03"}).
+
+    Tests use the `oracle` perception unless they name another: physics and policy tests
+    must not depend on how well the learned detector happens to be trained.
+    """
+    sections = {**sections, "perception": {"kind": "oracle", **sections.get("perception", {})}}
     return with_overrides(SimConfig(), sections)
 
 
 @functools.lru_cache(maxsize=None)
-def _cached_run(town: str, placement: str, policy: str, seed: int) -> RunResult:
-    config = make_config(scenario={"town": town, "placement": placement, "seed": seed}, policy={"name": policy})
+def _cached_run(town: str, placement: str, policy: str, seed: int, perception: str, sign: str) -> RunResult:
+    config = make_config(scenario={"town": town, "placement": placement, "seed": seed, "sign": sign},
+                         policy={"name": policy}, perception={"kind": perception})
     return run_config(config)[0]
 
 
 @pytest.fixture
 def study_run():
-    """run(town, placement, policy, seed=0) -> RunResult, at the default 85 km/h, cached per session."""
-    return lambda town, placement, policy, seed=0: _cached_run(town, placement, policy, seed)
+    """run(town, placement, policy, seed=0, perception="oracle", sign="clean") -> RunResult at 85 km/h,
+    cached for the session so several tests can assert on one run."""
+    return lambda town, placement, policy, seed=0, perception="oracle", sign="clean": _cached_run(
+        town, placement, policy, seed, perception, sign)
