@@ -1,0 +1,136 @@
+"""The sign dataset: JSONL records -> letterboxed tensors and input-pixel targets.
+
+A dataset directory DIR holds DIR/train.jsonl and DIR/val.jsonl, one JSON object per line:
+  {"image": "images/train/000123.png", "boxes": [[x0, y0, x1, y1], ...],
+   "classes": ["stop_sign", ...], "meta": {...}}
+Image paths are relative to DIR (RGB PNG); boxes are continuous image pixels; sign-free
+frames have empty lists; `meta` is not used for training.
+
+Augmentation randomness is drawn per sample from SeedSequence([seed, epoch, index]):
+deterministic, independent of visiting order and of DataLoader workers.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from avsim.errors import AvsimError
+from avsim.perception.base import SIGN_CLASSES
+from avsim.perception.detector.augment import AugmentConfig, clip_boxes, jitter_letterbox, photometric
+from avsim.perception.detector.letterbox import fit, to_tensor, warp
+from avsim.perception.detector.model import DEPLOY_INPUT_SIZE
+
+SPLITS = ("train", "val")
+
+
+class DatasetError(AvsimError):
+    """A detector dataset that is missing, malformed or refers to missing images."""
+
+
+@dataclass(frozen=True)
+class Record:
+    """One labelled image: boxes (G, 4) xyxy [image px], classes (G,) int64 indices into the class names."""
+
+    image_path: Path
+    boxes: np.ndarray
+    classes: np.ndarray
+
+
+def _parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, ...]) -> Record:
+    try:
+        obj = json.loads(line)
+        image, boxes, classes = obj["image"], obj["boxes"], obj["classes"]
+    except json.JSONDecodeError as exc:
+        raise DatasetError(f"{where} is not valid JSON ({exc.msg}); regenerate the dataset") from None
+    except (KeyError, TypeError):
+        raise DatasetError(f"{where} needs the keys 'image', 'boxes' and 'classes'; regenerate the dataset") from None
+    if len(boxes) != len(classes):
+        raise DatasetError(f"{where} has {len(boxes)} boxes but {len(classes)} classes; regenerate the dataset")
+    unknown = sorted({c for c in classes if c not in class_names})
+    if unknown:
+        raise DatasetError(f"{where} has unknown class {unknown[0]!r}; expected one of {', '.join(class_names)}")
+    try:
+        box_array = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    except (ValueError, TypeError):
+        raise DatasetError(f"{where} has boxes that are not [x0, y0, x1, y1] numbers; regenerate the dataset") from None
+    if not np.isfinite(box_array).all() or (box_array[:, 2:] < box_array[:, :2]).any():
+        raise DatasetError(f"{where} has a non-finite box or one with x1 < x0 or y1 < y0; regenerate the dataset")
+    class_array = np.array([class_names.index(c) for c in classes], dtype=np.int64)
+    return Record(data_dir / image, box_array, class_array)
+
+
+def read_records(data_dir: str | Path, split: str, class_names: tuple[str, ...] = SIGN_CLASSES) -> list[Record]:
+    """All records of `split` ("train" or "val") in `data_dir`, validated."""
+    if split not in SPLITS:
+        raise DatasetError(f"unknown split '{split}'; expected one of {', '.join(SPLITS)}")
+    data_dir = Path(data_dir)
+    path = data_dir / f"{split}.jsonl"
+    if not path.is_file():
+        raise DatasetError(f"detector dataset file {path} is missing; point --data at a directory with train.jsonl and val.jsonl")
+    lines = path.read_text().splitlines()
+    return [_parse_line(line, f"{path}:{n}", data_dir, class_names) for n, line in enumerate(lines, 1) if line.strip()]
+
+
+def read_rgb(path: Path) -> np.ndarray:
+    """(H, W, 3) uint8 RGB image from a PNG (OpenCV reads BGR)."""
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise DatasetError(f"image {path} is missing or unreadable; regenerate the dataset")
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+class SignDataset(Dataset):
+    """Item i -> (image (3, H_in, W_in) float32 in [0, 1], {"boxes": (G, 4) float32 xyxy [input px],
+    "classes": (G,) int64}).
+
+    augment: train-time augmentation (`augment.AugmentConfig`); call `set_epoch` each
+    epoch so every epoch draws new augmentations.
+    """
+
+    def __init__(self, data_dir: str | Path, split: str = "train", input_size: tuple[int, int] = DEPLOY_INPUT_SIZE,
+                 augment: bool = False, seed: int = 0, augment_config: AugmentConfig = AugmentConfig(),
+                 class_names: tuple[str, ...] = SIGN_CLASSES) -> None:
+        self.records = read_records(data_dir, split, class_names)
+        self.input_size = (int(input_size[0]), int(input_size[1]))
+        self.augment = augment
+        self.seed = int(seed)
+        self.augment_config = augment_config
+        self.class_names = class_names
+        self.epoch = 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        record = self.records[index]
+        image = read_rgb(record.image_path)
+        h, w = image.shape[:2]
+        box = fit(w, h, self.input_size)
+        config = self.augment_config
+        if self.augment:
+            rng = np.random.default_rng(np.random.SeedSequence([self.seed, self.epoch, index]))
+            box = jitter_letterbox(box, w, h, config, rng)
+            image_in = photometric(warp(image, box), config, rng)
+            boxes, classes = clip_boxes(box.to_input(record.boxes), record.classes, box.in_w, box.in_h,
+                                        config.min_visible, config.min_box_px)
+        else:
+            image_in = warp(image, box)
+            boxes, classes = clip_boxes(box.to_input(record.boxes), record.classes, box.in_w, box.in_h, 0.0, 1e-6)
+        target = {"boxes": torch.from_numpy(boxes).float().reshape(-1, 4), "classes": torch.from_numpy(classes).long()}
+        return to_tensor(image_in), target
+
+
+def collate(batch: list[tuple[torch.Tensor, dict[str, torch.Tensor]]]) -> tuple[torch.Tensor, list[dict[str, torch.Tensor]]]:
+    """Items -> (images (B, 3, H_in, W_in), per-image target dicts)."""
+    images = torch.stack([image for image, _ in batch]).contiguous()
+    return images, [target for _, target in batch]

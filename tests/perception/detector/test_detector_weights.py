@@ -1,0 +1,83 @@
+"""Checkpoint files: weights-only round trip, atomic writes, and one-line errors for bad files."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+import torch
+
+from avsim.errors import AvsimError
+from avsim.perception.detector.model import build_detector
+from avsim.perception.detector.weights import WeightsError, load_weights, save_checkpoint
+
+META = {"arch": {"width_mult": 0.5, "depth": 1, "num_classes": 3, "act": "leaky_relu"}, "input_size": [320, 256],
+        "class_names": ["stop_sign", "yield", "speed_limit"], "seed": 0, "epochs": 1}
+
+
+def _model(width_mult: float = 0.5) -> torch.nn.Module:
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(1)
+        return build_detector(width_mult=width_mult)
+
+
+def test_round_trip_is_weights_only_and_atomic(tmp_path):
+    model = _model()
+    optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
+    path = save_checkpoint(tmp_path / "sub" / "w.pt", model, optimizer, 1, META, {"step": 3, "history": [{"total": 1.5}]})
+    assert sorted(os.listdir(path.parent)) == ["w.pt"]  # no temporary file left behind
+    raw = torch.load(path, weights_only=True, map_location="cpu")
+    assert raw["meta"] == META and raw["train_state"]["step"] == 3
+    loaded, meta = load_weights(path)
+    assert meta == META and not loaded.training
+    x = torch.rand(1, 3, 64, 96)
+    with torch.no_grad():
+        for a, b in zip(model.eval()(x), loaded(x)):
+            assert torch.equal(a, b)
+
+
+def _assert_one_line(exc: AvsimError, *fragments: str) -> None:
+    text = str(exc)
+    assert "\n" not in text and len(text) < 400
+    for fragment in fragments:
+        assert fragment in text
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(WeightsError) as info:
+        load_weights(tmp_path / "nope.pt")
+    _assert_one_line(info.value, "missing", "avsim detector train")
+    assert isinstance(info.value, AvsimError)
+
+
+@pytest.mark.parametrize("content", [os.urandom(2048), b"", b"hello\nworld\n"])
+def test_garbage_bytes(tmp_path, content):
+    path = tmp_path / "w.pt"
+    path.write_bytes(content)
+    with pytest.raises(WeightsError) as info:
+        load_weights(path)
+    _assert_one_line(info.value, "corrupt", "avsim detector train")
+
+
+def test_valid_torch_file_with_wrong_content(tmp_path):
+    path = tmp_path / "w.pt"
+    torch.save({"foo": torch.zeros(3)}, path)
+    with pytest.raises(WeightsError) as info:
+        load_weights(path)
+    _assert_one_line(info.value, "not avsim detector weights", "avsim detector train")
+    torch.save(_model().state_dict(), path)  # a bare state_dict
+    with pytest.raises(WeightsError):
+        load_weights(path)
+
+
+def test_weights_that_do_not_fit_the_architecture(tmp_path):
+    path = save_checkpoint(tmp_path / "w.pt", _model(1.0), None, 1, META)  # meta says width 0.5
+    with pytest.raises(WeightsError) as info:
+        load_weights(path)
+    _assert_one_line(info.value, "architecture does not match", "avsim detector train")
+
+
+def test_refuses_to_write_values_that_would_not_load_weights_only(tmp_path):
+    with pytest.raises(TypeError, match=r"checkpoint\['meta'\]\['version'\] is a TorchVersion"):
+        save_checkpoint(tmp_path / "w.pt", _model(), None, 1, {**META, "version": torch.__version__})
+    assert not (tmp_path / "w.pt").exists()
