@@ -111,6 +111,36 @@ def _cmd_make_data(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train(args: argparse.Namespace) -> int:
+    from avsim.perception.detector.train import run_from_args
+
+    return run_from_args(args)
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from avsim.perception.detector.weights import export_weights
+
+    path = export_weights(args.checkpoint, args.out)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from avsim.perception.detector.perception import resolve_weights_path
+    from avsim.perception.detector.infer import SignDetectorRunner
+    from avsim.perception.evaluation import evaluate, write_report
+
+    weights = resolve_weights_path(args.weights)
+    # Score every box down to a low confidence: AP needs the whole ranking.
+    runner = SignDetectorRunner(weights, conf_threshold=0.01)
+    report = evaluate(runner.detect, args.data, conf_threshold=args.conf, split=args.split, limit=args.limit,
+                      progress=not args.no_progress)
+    report_path, plot_path = write_report(report, args.out, f"Sign detector {weights.name} on {args.data} ({args.split})")
+    print(report_path.read_text())
+    print(f"wrote {report_path} and {plot_path}")
+    return 0
+
+
 def _add_detector_commands(sub) -> None:
     detector = sub.add_parser("detector", help="make data for, train and evaluate the sign detector")
     dsub = detector.add_subparsers(dest="detector_command", required=True)
@@ -124,6 +154,27 @@ def _add_detector_commands(sub) -> None:
     data.add_argument("--overwrite", action="store_true", help="replace an existing dataset directory")
     data.set_defaults(func=_cmd_make_data)
 
+    from avsim.perception.detector.train_args import add_train_arguments
+
+    train = dsub.add_parser("train", help="train the detector on a generated dataset (resumable checkpoint)")
+    add_train_arguments(train)
+    train.set_defaults(func=_cmd_train)
+
+    export = dsub.add_parser("export", help="strip a training checkpoint to deployable weights (e.g. models/sign_detector.pt)")
+    export.add_argument("--checkpoint", required=True, help="checkpoint written by `avsim detector train`")
+    export.add_argument("--out", default="models/sign_detector.pt", help="weights file to write")
+    export.set_defaults(func=_cmd_export)
+
+    evaluate = dsub.add_parser("eval", help="score weights on the held-out split; writes report.md and a plot")
+    evaluate.add_argument("--weights", default="", help="weights file (default: the shipped models/sign_detector.pt)")
+    evaluate.add_argument("--data", default="data/signs", help="dataset directory (default data/signs)")
+    evaluate.add_argument("--split", default="val", choices=("val", "train"))
+    evaluate.add_argument("--conf", type=float, default=0.5, help="confidence threshold for recall and false positives")
+    evaluate.add_argument("--limit", type=int, help="score only the first N images")
+    evaluate.add_argument("--out", default="results/detector_eval", help="report directory")
+    evaluate.add_argument("--no-progress", action="store_true", help="no progress bar")
+    evaluate.set_defaults(func=_cmd_eval)
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
@@ -132,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="drive one scenario and print its summary")
     _add_scenario_flags(run)
     run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, autopilot")
-    run.add_argument("--perception", help="perception: oracle")
+    run.add_argument("--perception", help="perception: detector (trained network on RGB) or oracle (ground-truth boxes)")
     run.add_argument("--json", help="write the result record to this JSON file")
     run.set_defaults(func=_cmd_run)
 

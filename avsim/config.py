@@ -149,15 +149,26 @@ class LoopConfig:
 
 @dataclass(frozen=True)
 class PerceptionConfig:
-    """How signs are perceived. `oracle` reads boxes from segmentation."""
+    """How signs are perceived.
+
+    `detector` runs the trained sign detector on each rendered RGB frame; `oracle`
+    reads ground-truth boxes from segmentation (an explicitly named shortcut).
+    """
 
     kind: str = "oracle"
     # Like a real detector the oracle has a range: it reports a sign only once its
     # box is this tall. 16 px is about 43 m at the default front camera.
     min_box_height_px: float = 16.0
+    # Detector weights file; "" means the shipped models/sign_detector.pt.
+    weights_path: str = ""
+    # The detector reports every box at least this confident. The policy's own
+    # conf_threshold decides braking; lower-scored boxes are kept in the records
+    # so a run shows what an attack left of the sign.
+    min_confidence: float = 0.1
 
     def __post_init__(self) -> None:
         _require(self.min_box_height_px >= 1, f"perception.min_box_height_px must be >= 1, got {self.min_box_height_px}")
+        _require(0 < self.min_confidence < 1, f"perception.min_confidence must be in (0, 1), got {self.min_confidence}")
 
 
 @dataclass(frozen=True)

@@ -21,40 +21,13 @@ import numpy as np
 
 from avsim.config import CameraConfig
 from avsim.control.pinhole import pinhole_distance_m
+from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60))
 STOP_SIGN_HEIGHT_M = 0.762
 
 Detect = Callable[[np.ndarray, str], list[Detection]]
-
-
-def iou_xyxy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU matrix (len(a), len(b)) of (N, 4) boxes in x0, y0, x1, y1."""
-    if len(a) == 0 or len(b) == 0:
-        return np.zeros((len(a), len(b)))
-    x0 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y0 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x1 = np.minimum(a[:, None, 2], b[None, :, 2])
-    y1 = np.minimum(a[:, None, 3], b[None, :, 3])
-    inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)
-    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
-    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
-    return inter / (area_a[:, None] + area_b[None, :] - inter)
-
-
-def average_precision(scores: list[float], matched: list[bool], n_ground_truth: int) -> float:
-    """All-point interpolated AP from per-detection scores and true-positive flags."""
-    if n_ground_truth == 0:
-        return float("nan")
-    order = np.argsort(-np.asarray(scores, dtype=float), kind="stable")
-    tp = np.asarray(matched, dtype=float)[order]
-    recall = np.cumsum(tp) / n_ground_truth
-    precision = np.cumsum(tp) / np.arange(1, len(tp) + 1)
-    recall = np.concatenate([[0.0], recall, [1.0]])
-    precision = np.concatenate([[1.0], precision, [0.0]])
-    precision = np.maximum.accumulate(precision[::-1])[::-1]
-    return float(np.sum((recall[1:] - recall[:-1]) * precision[1:]))
 
 
 @dataclass
@@ -104,21 +77,18 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
             false_positives += sum(d.confidence >= conf_threshold for d in detections)
         best_stop_conf, best_stop_det = 0.0, None
         for cls in SIGN_CLASSES:
-            gt_idx = [i for i, c in enumerate(gt_classes) if c == cls]
-            dets = sorted((d for d in detections if d.class_name == cls), key=lambda d: -d.confidence)
+            dets = [d for d in detections if d.class_name == cls]
+            gt_of_class = gt_boxes[[c == cls for c in gt_classes]] if gt_classes else gt_boxes[:0]
+            scores = np.asarray([d.confidence for d in dets])
+            matched = match_detections(np.asarray([d.box_xyxy_px for d in dets]).reshape(-1, 4), scores, gt_of_class)
             tally = tallies[cls]
-            tally.n_ground_truth += len(gt_idx)
-            ious = iou_xyxy(np.asarray([d.box_xyxy_px for d in dets]).reshape(-1, 4), gt_boxes[gt_idx])
-            taken = set()
-            for k, det in enumerate(dets):
-                candidates = [j for j in range(len(gt_idx)) if j not in taken and ious[k, j] >= 0.5]
-                hit = max(candidates, key=lambda j: ious[k, j]) if candidates else None
-                if hit is not None:
-                    taken.add(hit)
-                tally.scores.append(det.confidence)
-                tally.matched.append(hit is not None)
-                if cls == "stop_sign" and hit is not None and det.confidence > best_stop_conf:
-                    best_stop_conf, best_stop_det = det.confidence, det
+            tally.n_ground_truth += len(gt_of_class)
+            tally.scores.extend(scores.tolist())
+            tally.matched.extend(matched.tolist())
+            if cls == "stop_sign":
+                for det, hit in zip(dets, matched):
+                    if hit and det.confidence > best_stop_conf:
+                        best_stop_conf, best_stop_det = det.confidence, det
         meta = record["meta"]
         if meta["camera"] == "front" and meta["target_kind"] == "stop_sign" and "stop_sign" in gt_classes:
             for lo, hi in DIST_BINS_M:
@@ -128,7 +98,7 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
                         estimate = pinhole_distance_m(STOP_SIGN_HEIGHT_M, f_px, best_stop_det.height_px)
                         per_bin_pinhole[_bin_name(lo, hi)].append(abs(estimate - meta["dist_m"]) / meta["dist_m"])
     return EvalReport(
-        ap50={cls: average_precision(t.scores, t.matched, t.n_ground_truth) for cls, t in tallies.items()},
+        ap50={cls: average_precision(np.asarray(t.scores), np.asarray(t.matched, bool), t.n_ground_truth) for cls, t in tallies.items()},
         recall_by_bin={b: float(np.mean(np.asarray(v) >= conf_threshold)) if v else float("nan") for b, v in per_bin_conf.items()},
         mean_conf_by_bin={b: float(np.mean(v)) if v else float("nan") for b, v in per_bin_conf.items()},
         count_by_bin={b: len(v) for b, v in per_bin_conf.items()},

@@ -17,5 +17,15 @@ PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
 PERCEPTIONS.add("oracle", lambda cfg, model, scene: OraclePerception(model, scene.signs, cfg.min_box_height_px))
 
 
+def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo) -> Perception:
+    # Imported here so oracle-only runs never import the network code.
+    from avsim.perception.detector.perception import DetectorPerception
+
+    return DetectorPerception(config.weights_path, config.min_confidence)
+
+
+PERCEPTIONS.add("detector", _detector)
+
+
 def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo) -> Perception:
     return PERCEPTIONS.get(config.kind)(config, model, scene)

@@ -1,23 +1,76 @@
-"""Detection metrics against hand-worked cases."""
+"""The detector report's bookkeeping, on a hand-made dataset scored by scripted detectors."""
 
+import json
+
+import cv2
 import numpy as np
 import pytest
 
-from avsim.perception.evaluation import average_precision, iou_xyxy
+from avsim.perception.base import Detection
+from avsim.perception.evaluation import evaluate, write_report
+
+# (boxes, classes, dist_m): two stop signs in different distance bins, a yield, and a sign-free frame.
+FRAMES = [
+    ([[300, 200, 320, 220]], ["stop_sign"], 40.0),
+    ([[300, 150, 360, 210]], ["stop_sign"], 12.0),
+    ([[100, 100, 130, 130]], ["yield"], 20.0),
+    ([], [], 30.0),
+]
 
 
-def test_iou_of_identical_disjoint_and_half_overlapping_boxes():
-    a = np.array([[0, 0, 10, 10]], float)
-    b = np.array([[0, 0, 10, 10], [20, 20, 30, 30], [5, 0, 15, 10]], float)
-    assert iou_xyxy(a, b)[0] == pytest.approx([1.0, 0.0, 50 / 150])
+@pytest.fixture(scope="module")
+def tiny_split(tmp_path_factory):
+    root = tmp_path_factory.mktemp("signs")
+    (root / "images").mkdir()
+    lines = []
+    for i, (boxes, classes, dist_m) in enumerate(FRAMES):
+        cv2.imwrite(str(root / "images" / f"{i}.png"), np.zeros((480, 640, 3), np.uint8))
+        meta = {"camera": "front", "target_kind": "stop_sign" if "stop_sign" in classes else "none", "dist_m": dist_m}
+        lines.append(json.dumps({"image": f"images/{i}.png", "boxes": boxes, "classes": classes, "meta": meta}))
+    (root / "val.jsonl").write_text("\n".join(lines) + "\n")
+    return root
 
 
-def test_ap_is_one_for_perfect_ranking_and_lower_when_a_false_positive_ranks_first():
-    assert average_precision([0.9, 0.8], [True, True], 2) == pytest.approx(1.0)
-    # FP first: precision at recall 0.5 is 1/2, at recall 1 is 2/3 -> AP = 0.5*2/3 + 0.5*2/3.
-    assert average_precision([0.9, 0.8, 0.7], [False, True, True], 2) == pytest.approx(2 / 3)
+def _replay(frames_detections):
+    """A detector that returns scripted detections frame by frame, in dataset order."""
+    queue = iter(frames_detections)
+    return lambda image, camera: next(queue)
 
 
-def test_ap_counts_missed_ground_truth():
-    assert average_precision([0.9], [True], 4) == pytest.approx(0.25)
-    assert np.isnan(average_precision([], [], 0))
+def test_perfect_detections_score_ap_one_full_recall_and_no_false_positives(tiny_split):
+    scripted = [[Detection(cls, 0.9, tuple(map(float, box)), "front") for box, cls in zip(boxes, classes)]
+                for boxes, classes, _ in FRAMES]
+    report = evaluate(_replay(scripted), tiny_split, conf_threshold=0.5, progress=False)
+    assert report.ap50["stop_sign"] == pytest.approx(1.0) and report.ap50["yield"] == pytest.approx(1.0)
+    assert np.isnan(report.ap50["speed_limit"])
+    assert report.recall_by_bin["35-45 m"] == 1.0 and report.recall_by_bin["5-15 m"] == 1.0
+    assert report.count_by_bin["35-45 m"] == 1 and report.count_by_bin["15-25 m"] == 0
+    assert report.fp_per_100_empty == 0.0 and report.n_empty == 1
+
+
+def test_misses_low_confidence_and_false_positives_are_counted(tiny_split):
+    scripted = [
+        [Detection("stop_sign", 0.3, (300.0, 200.0, 320.0, 220.0), "front")],  # found, but below threshold
+        [Detection("stop_sign", 0.9, (0.0, 0.0, 10.0, 10.0), "front")],  # wrong place
+        [],
+        [Detection("stop_sign", 0.8, (5.0, 5.0, 50.0, 50.0), "front")],  # fires on an empty frame
+    ]
+    report = evaluate(_replay(scripted), tiny_split, conf_threshold=0.5, progress=False)
+    assert report.recall_by_bin["35-45 m"] == 0.0 and report.mean_conf_by_bin["35-45 m"] == pytest.approx(0.3)
+    assert report.recall_by_bin["5-15 m"] == 0.0
+    assert report.fp_per_100_empty == 100.0
+    assert report.ap50["stop_sign"] < 0.5 and report.ap50["yield"] == 0.0
+
+
+def test_pinhole_error_uses_the_detected_box_height(tiny_split):
+    # A 20 px stop sign box: the pinhole estimate is 0.762 * 896 / 20 = 34.1 m against a true 40 m.
+    scripted = [[Detection("stop_sign", 0.9, (300.0, 200.0, 320.0, 220.0), "front")], [], [], []]
+    report = evaluate(_replay(scripted), tiny_split, conf_threshold=0.5, progress=False)
+    f_px = 240 / np.tan(np.radians(15))
+    assert report.pinhole_median_rel_err_by_bin["35-45 m"] == pytest.approx(abs(0.762 * f_px / 20 - 40) / 40, rel=1e-6)
+
+
+def test_report_writes_markdown_and_plot(tiny_split, tmp_path):
+    report = evaluate(_replay([[], [], [], []]), tiny_split, conf_threshold=0.5, progress=False)
+    report_path, plot_path = write_report(report, tmp_path / "eval", "test")
+    assert "| stop_sign |" in report_path.read_text() and plot_path.stat().st_size > 1000

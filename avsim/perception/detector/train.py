@@ -35,7 +35,9 @@ from avsim.errors import AvsimError, ConfigError
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.data import SignDataset, collate
 from avsim.perception.detector.ema import ModelEMA
-from avsim.perception.detector.evaluate import evaluate_map50, mean_ap
+from avsim.perception.ap import mean_ap
+from avsim.perception.detector.train_args import add_train_arguments
+from avsim.perception.detector.evaluate import evaluate_map50
 from avsim.perception.detector.loss import LossWeights, compute_loss
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE, build_detector
 from avsim.perception.detector.weights import load_checkpoint, save_checkpoint
@@ -187,23 +189,9 @@ def train(data_dir: str | Path, out_path: str | Path, epochs: int = 30, batch_si
     return {"out_path": str(out_path), "epochs": epochs, "history": history}
 
 
-def add_train_arguments(parser: argparse.ArgumentParser) -> None:
-    """The training flags, shared by this module's CLI and `avsim detector train`."""
-    parser.add_argument("--data", required=True, help="dataset directory with train.jsonl (and val.jsonl)")
-    parser.add_argument("--out", required=True, help="checkpoint / weights file, rewritten each epoch")
-    parser.add_argument("--epochs", type=int, default=30)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--resume", action="store_true", help="continue from --out if it holds a checkpoint")
-    parser.add_argument("--batch-size", type=int, default=16)
-    parser.add_argument("--lr", type=float, default=2e-3, help="peak AdamW learning rate")
-    parser.add_argument("--input-size", default=f"{DEPLOY_INPUT_SIZE[0]}x{DEPLOY_INPUT_SIZE[1]}", help="W_inxH_in, multiples of 32")
-    parser.add_argument("--width-mult", type=float, default=1.0)
-    parser.add_argument("--log-every", type=int, default=50, help="steps between log lines (0: none)")
-    parser.add_argument("--device", default="cpu")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
 def run_from_args(args: argparse.Namespace) -> int:
+    if args.input_size is None:
+        args.input_size = f"{DEPLOY_INPUT_SIZE[0]}x{DEPLOY_INPUT_SIZE[1]}"
     width, sep, height = str(args.input_size).lower().partition("x")
     if not sep or not width.isdigit() or not height.isdigit():
         raise ConfigError(f"--input-size expects WxH, e.g. 640x480, got '{args.input_size}'")

@@ -115,3 +115,15 @@ def load_weights(path: str | Path) -> tuple[SignDetector, dict[str, Any]]:
     except (TypeError, ValueError, RuntimeError, KeyError) as exc:
         raise _corrupt(Path(path), f"architecture does not match: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from exc
     return model.eval(), meta
+
+
+def export_weights(checkpoint_path: str | Path, out_path: str | Path) -> Path:
+    """Write the deployable part of a training checkpoint (model weights and meta) to `out_path`.
+
+    Drops the optimiser and training state, which are several times the size of the
+    weights and only matter for `--resume`. Raises WeightsError if the checkpoint is unusable.
+    """
+    checkpoint_path = Path(checkpoint_path)
+    model, meta = load_weights(checkpoint_path)
+    checkpoint = load_checkpoint(checkpoint_path)
+    return save_checkpoint(out_path, model, None, int(checkpoint["epoch"]), meta)

@@ -81,3 +81,19 @@ def test_refuses_to_write_values_that_would_not_load_weights_only(tmp_path):
     with pytest.raises(TypeError, match=r"checkpoint\['meta'\]\['version'\] is a TorchVersion"):
         save_checkpoint(tmp_path / "w.pt", _model(), None, 1, {**META, "version": torch.__version__})
     assert not (tmp_path / "w.pt").exists()
+
+
+def test_export_keeps_the_weights_and_drops_the_training_state(tmp_path):
+    from avsim.perception.detector.weights import export_weights
+
+    model = _model()
+    optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
+    checkpoint = save_checkpoint(tmp_path / "ckpt.pt", model, optimizer, 4, META, {"step": 3, "history": []})
+    deployed = export_weights(checkpoint, tmp_path / "deploy.pt")
+    raw = torch.load(deployed, weights_only=True, map_location="cpu")
+    assert raw["optimizer"] is None and raw["train_state"] == {} and raw["epoch"] == 4 and raw["meta"] == META
+    loaded, _ = load_weights(deployed)
+    x = torch.rand(1, 3, 64, 96)
+    with torch.no_grad():
+        for a, b in zip(model.eval()(x), loaded(x)):
+            assert torch.equal(a, b)
