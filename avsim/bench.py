@@ -12,6 +12,7 @@ import mujoco
 
 from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop, run_config
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
 
 def _physics_steps_per_s(config: SimConfig, steps: int) -> float:
@@ -40,6 +41,40 @@ def _frames_per_s(config: SimConfig, frames: int, segmentation: bool) -> float:
     return frames / elapsed
 
 
+def _detector_ms_per_frame(config: SimConfig, frames: int) -> tuple[float, float]:
+    """Median and 90th-percentile detector time [ms] on rendered front-camera frames
+    (pre-processing, network and NMS; rendering excluded)."""
+    import numpy as np
+
+    from avsim.perception.detector.perception import DetectorPerception
+
+    loop = ClosedLoop(config)
+    detector = DetectorPerception(config.perception.weights_path, config.perception.min_confidence).runner
+    # Frames along the approach, so boxes of every size (and none) are in the mix.
+    images = []
+    for dist_m in np.linspace(80.0, 8.0, 16):
+        loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        images.append(loop.rig.render_rgb(loop.data, "front"))
+    loop.close()
+    for image in images[:5]:  # warm-up: first calls allocate
+        detector.detect(image, "front")
+    times_ms = []
+    for i in range(frames):
+        start = time.perf_counter()
+        detector.detect(images[i % len(images)], "front")
+        times_ms.append(1e3 * (time.perf_counter() - start))
+    return float(np.median(times_ms)), float(np.percentile(times_ms, 90))
+
+
+def _closed_loop_rows(base: SimConfig, perception: str, towns: tuple[str, ...], target: str) -> None:
+    for town in towns:
+        for label, policy in (("one camera (baseline)", "baseline"), ("two cameras (side_camera)", "side_camera")):
+            config = with_overrides(base, {"scenario": {"town": town}, "policy": {"name": policy}, "perception": {"kind": perception}})
+            result, wall_s = run_config(config)
+            print(f"  closed loop, {perception:8s} {town}, {label:26s} {result.sim_time_s / wall_s:5.1f}x real time "
+                  f"({result.sim_time_s:.1f} s simulated in {wall_s:.1f} s; {target})")
+
+
 def run_benchmarks(quick: bool = False) -> None:
     base = SimConfig()
     frames = 50 if quick else 200
@@ -50,13 +85,10 @@ def run_benchmarks(quick: bool = False) -> None:
     print(f"  front camera RGB render          {_frames_per_s(base, frames, False):10.1f} frames/s       (target >= 40)")
     print(f"  front camera full segmentation   {_frames_per_s(base, frames, True):10.1f} frames/s       "
           f"({base.camera.seg_supersample}x supersampled, whole image decoded)")
-    for town in ("town07", "town10"):
-        for label, policy in (("one camera (baseline)", "baseline"), ("two cameras (side_camera)", "side_camera")):
-            config = with_overrides(base, {"scenario": {"town": town}, "policy": {"name": policy}, "perception": {"kind": "oracle"}})
-            result, wall_s = run_config(config)
-            print(f"  closed loop, oracle, {town}, {label:26s} {result.sim_time_s / wall_s:5.1f}x real time "
-                  f"({result.sim_time_s:.1f} s simulated in {wall_s:.1f} s; target >= 3 for one camera)")
-
+    _closed_loop_rows(base, "oracle", ("town07", "town10"), "target >= 3 for one camera")
+    median_ms, p90_ms = _detector_ms_per_frame(base, 50 if quick else 200)
+    print(f"  detector, 640x480 frame          {median_ms:10.1f} ms median    (90th percentile {p90_ms:.1f} ms; target <= 12)")
+    _closed_loop_rows(base, "detector", ("town07",) if quick else ("town07", "town10"), "target >= 2 for one camera")
 
 if __name__ == "__main__":
     run_benchmarks()

@@ -72,12 +72,27 @@ def _config_from_args(args: argparse.Namespace):
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from avsim.loop import run_config
+    import time
+
+    from avsim.loop import ClosedLoop, run_config
     from avsim.metrics import write_json_atomic
     from avsim.summary import format_summary
 
     config = _config_from_args(args)
-    result, wall_s = run_config(config)
+    if args.rrd:
+        # As run_config, with the recorder attached; the .rrd appears only if the run completes.
+        from avsim.recording.rerun_log import RunRecorder
+
+        start = time.perf_counter()
+        loop = ClosedLoop(config)
+        try:
+            with RunRecorder(loop, args.rrd) as recorder:
+                result = loop.run(on_step=recorder.on_step)
+        finally:
+            loop.close()
+        wall_s = time.perf_counter() - start
+    else:
+        result, wall_s = run_config(config)
     print(format_summary(result, wall_s))
     if args.json:
         write_json_atomic(args.json, result.to_json_dict())
@@ -185,6 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, autopilot")
     run.add_argument("--perception", help="perception: detector (trained network on RGB) or oracle (ground-truth boxes)")
     run.add_argument("--json", help="write the result record to this JSON file")
+    run.add_argument("--rrd", help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
     run.set_defaults(func=_cmd_run)
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")

@@ -9,6 +9,7 @@ import cv2
 from avsim.config import SimConfig
 from avsim.loop import ClosedLoop
 from avsim.sensors.camera import CAMERA_NAMES
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
 
 def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: str) -> list[Path]:
@@ -16,7 +17,7 @@ def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: s
     `{out_prefix}_{camera}.png` for each camera, with the oracle's boxes drawn."""
     loop = ClosedLoop(config)
     try:
-        loop.vehicle.place(loop.scene.stop_line_x_m - bumper_to_stop_line_m - 2.30, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        loop.vehicle.place(loop.scene.stop_line_x_m - bumper_to_stop_line_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
         paths = []
         for camera in CAMERA_NAMES:
             image = loop.rig.render_rgb(loop.data, camera)[..., ::-1].copy()  # BGR for OpenCV

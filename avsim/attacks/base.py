@@ -1,0 +1,109 @@
+"""The attack interface, shaped like torchattacks: construct with hyperparameters, then call.
+
+    attack = ATTACKS.get("lu_v2")(scene, steps=300, seed=0)
+    result = attack(clean_texture)          # AttackResult: texture, SSIM, L-inf, loss history
+
+`scene` is the expectation-over-transformation scene (`avsim.attacks.eot.EotScene`): it warps
+a texture into sampled camera views, runs the detector and returns the stop-sign evidence.
+Subclasses write only `forward`; the base class seeds the generator, keeps the detector
+frozen, measures the budget and prints the hyperparameters in `repr`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import torch
+
+from avsim.attacks.budget import linf, ssim
+from avsim.attacks.objective import StopEvidence
+
+
+class Scene(Protocol):
+    face_mask: torch.Tensor  # (1, H_tex, W_tex) 1 on the sign face, 0 outside the octagon
+
+    def evidence(self, texture: torch.Tensor, n_views: int, generator: torch.Generator,
+                 sequence: bool = False) -> StopEvidence: ...
+
+
+@dataclass
+class AttackResult:
+    """An attacked texture (3, H, W) in [0, 1] and how it was made."""
+
+    texture: torch.Tensor
+    method: str
+    hyperparameters: dict[str, Any]
+    seed: int
+    ssim: float
+    linf: float
+    loss_history: list[float] = field(default_factory=list)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"method": self.method, "hyperparameters": self.hyperparameters, "seed": self.seed,
+                "ssim": self.ssim, "linf": self.linf, "final_loss": self.loss_history[-1] if self.loss_history else None,
+                "steps_run": len(self.loss_history)}
+
+
+class Attack(ABC):
+    """Base class. `paper` names the work the attack follows; subclasses set it."""
+
+    name: str = ""
+    paper: str = ""
+
+    def __init__(self, scene: Scene, *, steps: int, views_per_step: int, lr: float, seed: int, **hyperparameters: Any) -> None:
+        if steps < 1 or views_per_step < 1 or lr <= 0:
+            raise ValueError(f"{self.name}: need steps >= 1, views_per_step >= 1 and lr > 0")
+        self.scene = scene
+        self.steps = steps
+        self.views_per_step = views_per_step
+        self.lr = lr
+        self.seed = seed
+        self.hyperparameters = {"steps": steps, "views_per_step": views_per_step, "lr": lr, **hyperparameters}
+        self.loss_history: list[float] = []
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v}" for k, v in self.hyperparameters.items())
+        return f"{type(self).__name__}({args}, seed={self.seed})"
+
+    @abstractmethod
+    def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """The attacked texture (3, H, W) in [0, 1]; append each step's loss to `self.loss_history`."""
+
+    def __call__(self, clean: torch.Tensor) -> AttackResult:
+        self.loss_history = []
+        generator = torch.Generator().manual_seed(self.seed)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self.seed)  # nothing should read it; this makes sure nothing leaks either way
+            texture = self.forward(clean.detach().float(), generator).detach().clamp(0.0, 1.0)
+        mask = self.scene.face_mask
+        return AttackResult(texture=texture, method=self.name, hyperparameters=dict(self.hyperparameters), seed=self.seed,
+                            ssim=ssim(texture, clean, mask), linf=linf(texture, clean), loss_history=list(self.loss_history))
+
+    def _log(self, loss: torch.Tensor) -> None:
+        value = float(loss.detach())
+        if value != value:  # NaN
+            raise FloatingPointError(f"{self.name}: loss became NaN at step {len(self.loss_history) + 1}")
+        self.loss_history.append(value)
+
+
+def optimise_bounded(attack: Attack, clean: torch.Tensor, bound: torch.Tensor, generator: torch.Generator,
+                     loss_fn) -> torch.Tensor:
+    """Adam on a perturbation delta kept inside a per-pixel bound, projected after every step.
+
+    bound: (1 or 3, H, W) the largest |delta| allowed at each texel (0 off the face);
+    loss_fn(texture, generator) -> scalar to minimise. Returns clean + delta, in [0, 1].
+    """
+    delta = torch.zeros_like(clean, requires_grad=True)
+    optimizer = torch.optim.Adam([delta], lr=attack.lr)
+    for _ in range(attack.steps):
+        loss = loss_fn(clean + delta, generator)
+        attack._log(loss)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        with torch.no_grad():
+            delta.copy_(torch.maximum(torch.minimum(delta, bound), -bound))
+            delta.copy_((clean + delta).clamp(0.0, 1.0) - clean)
+    return (clean + delta).detach()

@@ -1,0 +1,35 @@
+"""`chen`: ShapeShifter-style whole-texture attack.
+
+Paper: S.-T. Chen, C. Cornelius, J. Martin, D. H. Chau, "ShapeShifter: Robust Physical
+Adversarial Attack on Faster R-CNN Object Detector", ECML PKDD 2018.
+Objective: minimise the expected stop-sign class probability over EOT views, plus a
+similarity penalty c * mean(delta^2) to the clean sign (ShapeShifter's L2 term).
+Constraint: the perturbation lives on the whole sign face, |delta| <= eps (L-infinity).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from avsim.attacks.base import Attack, Scene, optimise_bounded
+
+
+class Chen(Attack):
+    name = "chen"
+    paper = "Chen et al. 2018, ShapeShifter"
+
+    def __init__(self, scene: Scene, *, eps: float = 0.2, similarity_weight: float = 2.0, steps: int = 250,
+                 views_per_step: int = 8, lr: float = 0.01, seed: int = 0) -> None:
+        super().__init__(scene, steps=steps, views_per_step=views_per_step, lr=lr, seed=seed, eps=eps,
+                         similarity_weight=similarity_weight)
+        self.eps, self.similarity_weight = eps, similarity_weight
+
+    def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        mask = self.scene.face_mask
+
+        def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
+            evidence = self.scene.evidence(texture, self.views_per_step, gen)
+            similarity = ((texture - clean) ** 2 * mask).sum() / mask.sum() / 3
+            return evidence.class_prob.mean() + self.similarity_weight * similarity
+
+        return optimise_bounded(self, clean, self.eps * mask, generator, loss)

@@ -1,0 +1,80 @@
+"""Differentiable image-space transformations for expectation over transformation (EOT).
+
+Applied to composited camera images (B, 3, H, W) in [0, 1] after the sign is warped in,
+so the texture must survive what the camera pipeline does to it: exposure and contrast,
+fog, defocus or motion blur, sensor noise and JPEG re-encoding. Every draw comes from the
+`torch.Generator` passed in, so a seed fixes the whole sequence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from kornia.enhance import jpeg_codec_differentiable
+from kornia.filters import gaussian_blur2d, motion_blur
+
+
+@dataclass(frozen=True)
+class PhotometricRanges:
+    """Ranges the transformations are drawn from, uniformly."""
+
+    gain: tuple[float, float] = (0.7, 1.3)  # exposure (the study's and ShapeShifter's brightness range)
+    contrast: tuple[float, float] = (0.8, 1.2)
+    fog_density: tuple[float, float] = (0.0, 0.3)  # blend weight toward the fog colour
+    blur_probability: float = 0.5
+    blur_sigma_px: tuple[float, float] = (0.3, 1.2)
+    motion_blur_probability: float = 0.3
+    motion_blur_kernel_px: int = 5
+    noise_std: tuple[float, float] = (0.0, 0.03)
+    jpeg_probability: float = 0.5
+    jpeg_quality: tuple[float, float] = (50.0, 95.0)
+
+
+FOG_RGB = (0.75, 0.78, 0.8)
+
+
+def _uniform(n: int, bounds: tuple[float, float], generator: torch.Generator) -> torch.Tensor:
+    lo, hi = bounds
+    return lo + (hi - lo) * torch.rand(n, generator=generator)
+
+
+def apply_photometric(images: torch.Tensor, ranges: PhotometricRanges, generator: torch.Generator) -> torch.Tensor:
+    """(B, 3, H, W) in [0, 1] -> the same shape, each image with its own random draw.
+
+    Gradients flow through every step (JPEG through kornia's differentiable codec).
+    """
+    b = images.shape[0]
+    gain = _uniform(b, ranges.gain, generator).view(b, 1, 1, 1)
+    contrast = _uniform(b, ranges.contrast, generator).view(b, 1, 1, 1)
+    mean = images.mean(dim=(1, 2, 3), keepdim=True)
+    out = ((images - mean) * contrast + mean) * gain
+    fog = _uniform(b, ranges.fog_density, generator).view(b, 1, 1, 1)
+    out = out * (1 - fog) + fog * torch.tensor(FOG_RGB, dtype=out.dtype).view(1, 3, 1, 1)
+
+    blur = torch.rand(b, generator=generator) < ranges.blur_probability
+    sigma = _uniform(b, ranges.blur_sigma_px, generator)
+    motion = torch.rand(b, generator=generator) < ranges.motion_blur_probability
+    angle_deg = _uniform(b, (-10.0, 10.0), generator)  # the car moves forward: streaks are nearly radial
+    blurred = []
+    for i in range(b):
+        image = out[i:i + 1]
+        if blur[i]:
+            s = float(sigma[i])
+            image = gaussian_blur2d(image, (5, 5), (s, s))
+        if motion[i]:
+            image = motion_blur(image, ranges.motion_blur_kernel_px, float(angle_deg[i]), 0.0)
+        blurred.append(image)
+    out = torch.cat(blurred)
+
+    noise_std = _uniform(b, ranges.noise_std, generator).view(b, 1, 1, 1)
+    out = out + noise_std * torch.randn(out.shape, generator=generator, dtype=out.dtype)
+    out = out.clamp(0.0, 1.0)
+
+    jpeg = torch.rand(b, generator=generator) < ranges.jpeg_probability
+    if bool(jpeg.any()):
+        quality = _uniform(b, ranges.jpeg_quality, generator)
+        idx = torch.nonzero(jpeg).squeeze(1)
+        encoded = jpeg_codec_differentiable(out[idx], quality[idx])
+        out = out.index_copy(0, idx, encoded.clamp(0.0, 1.0))
+    return out
