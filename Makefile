@@ -14,7 +14,7 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 run: $(VENV)/.installed
-	$(PY) -m avsim run --town town07 --placement standard --policy baseline --perception oracle --speed-kmh 85 --seed 0 --json results/run.json
+	$(PY) -m avsim run --town town07 --placement standard --policy baseline --perception detector --speed-kmh 85 --seed 0 --json results/run.json
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q

@@ -10,6 +10,7 @@ import argparse
 import os
 import sys
 import tomllib
+from pathlib import Path
 from collections.abc import Sequence
 from typing import Any
 
@@ -191,6 +192,87 @@ def _add_detector_commands(sub) -> None:
     evaluate.set_defaults(func=_cmd_eval)
 
 
+def _cmd_attack_generate(args: argparse.Namespace) -> int:
+    from avsim.attacks.generate import generate
+
+    hyper = {k: v for k, v in (("steps", args.steps), ("views_per_step", args.views_per_step)) if v is not None}
+    hyper.update(_parse_set(args.set))
+    from avsim.attacks.generate import check_hyperparameters, prepare
+
+    check_hyperparameters(args.method, args.seed, hyper)
+    _, record = generate(args.method, args.out, seed=args.seed, setup=prepare(args.weights), hyperparameters=hyper)
+    print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
+          f"and {Path(args.out).with_suffix('.json')}")
+    return 0
+
+
+def _cmd_attack_eval(args: argparse.Namespace) -> int:
+    from avsim.attacks.evaluate import evaluate_texture, fig3_grid
+    from avsim.attacks.report import write_attack_report
+    from avsim.config import SimConfig
+    from avsim.world.scene import resolve_sign_texture
+    from avsim.world.textures import TEXTURE_DIR
+
+    signs = [s.strip() for s in args.signs.split(",") if s.strip()]
+    for sign in signs:
+        resolve_sign_texture(sign)  # fail on a bad name before rendering anything
+    placements = tuple(p.strip() for p in args.placements.split(","))
+    threshold = SimConfig().policy.conf_threshold
+    out = Path(args.out)
+    reports = []
+    for sign in signs:
+        print(f"measuring {sign} ...", flush=True)
+        reports.append(evaluate_texture(sign, args.town, placements, threshold))
+    fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town)
+    path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_attack_sweep(args: argparse.Namespace) -> int:
+    from avsim.attacks.sweep import BUDGET_KEY, budget_sweep
+
+    if args.method not in BUDGET_KEY:
+        raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
+    try:
+        budgets = [float(b) for b in args.budgets.split(",")]
+    except ValueError:
+        raise ConfigError(f"--budgets expects comma-separated numbers, e.g. 0.05,0.1,0.2; got '{args.budgets}'") from None
+    csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights)
+    print(f"wrote {csv_path} and {plot_path}")
+    return 0
+
+
+def _add_attack_commands(sub) -> None:
+    attack = sub.add_parser("attack", help="optimise adversarial stop-sign textures and measure them in renders")
+    asub = attack.add_subparsers(dest="attack_command", required=True)
+    gen = asub.add_parser("generate", help="optimise one texture against the shipped detector")
+    gen.add_argument("--method", required=True, help="chen, eykholt, lu_v2, lu_v3 or yang")
+    gen.add_argument("--out", required=True, help="PNG to write (a JSON record is written beside it)")
+    gen.add_argument("--seed", type=int, default=0)
+    gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
+    gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
+    gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
+    gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
+    gen.set_defaults(func=_cmd_attack_generate)
+    ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
+    ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
+    ev.add_argument("--town", default="town07")
+    ev.add_argument("--placements", default="near,standard,far")
+    ev.add_argument("--out", default="results/attack_eval", help="report directory")
+    ev.set_defaults(func=_cmd_attack_eval)
+    sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")
+    sw.add_argument("--method", required=True)
+    sw.add_argument("--budgets", required=True, help="comma-separated budgets (eps, eps_peak or sticker area fraction)")
+    sw.add_argument("--steps", type=int, default=100, help="optimisation steps per budget")
+    sw.add_argument("--seed", type=int, default=0)
+    sw.add_argument("--weights", default="")
+    sw.add_argument("--out", default="results/attack_sweep")
+    sw.set_defaults(func=_cmd_attack_sweep)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -213,6 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
+    _add_attack_commands(sub)
     return parser
 
 

@@ -155,7 +155,7 @@ class PerceptionConfig:
     reads ground-truth boxes from segmentation (an explicitly named shortcut).
     """
 
-    kind: str = "oracle"
+    kind: str = "detector"
     # Like a real detector the oracle has a range: it reports a sign only once its
     # box is this tall. 16 px is about 43 m at the default front camera.
     min_box_height_px: float = 16.0

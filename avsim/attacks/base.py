@@ -62,6 +62,13 @@ class Attack(ABC):
         self.seed = seed
         self.hyperparameters = {"steps": steps, "views_per_step": views_per_step, "lr": lr, **hyperparameters}
         self.loss_history: list[float] = []
+        self.progress = False  # a progress bar over the steps (the CLI turns it on)
+
+    def step_range(self):
+        """range(self.steps), wrapped in a progress bar showing the loss when `progress` is on."""
+        from tqdm import tqdm
+
+        return tqdm(range(self.steps), desc=self.name, disable=not self.progress, dynamic_ncols=True)
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v}" for k, v in self.hyperparameters.items())
@@ -97,9 +104,11 @@ def optimise_bounded(attack: Attack, clean: torch.Tensor, bound: torch.Tensor, g
     """
     delta = torch.zeros_like(clean, requires_grad=True)
     optimizer = torch.optim.Adam([delta], lr=attack.lr)
-    for _ in range(attack.steps):
+    bar = attack.step_range()
+    for _ in bar:
         loss = loss_fn(clean + delta, generator)
         attack._log(loss)
+        bar.set_postfix(loss=f"{attack.loss_history[-1]:.4f}", refresh=False)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()

@@ -60,13 +60,15 @@ class Eykholt(Attack):
         # Stickers are solid material: optimise their colour freely, through a sigmoid to stay in [0, 1].
         logits = torch.logit(clean.clamp(0.02, 0.98)).clone().requires_grad_(True)
         optimizer = torch.optim.Adam([logits], lr=self.lr * 10)
-        for _ in range(self.steps):
+        bar = self.step_range()
+        for _ in bar:
             texture = clean * (1 - mask) + torch.sigmoid(logits) * mask
             evidence = self.scene.evidence(texture, self.views_per_step, generator)
             loss = (evidence.score.mean() + self.nps_weight * non_printability(texture, mask)
                     + self.tv_weight * total_variation(texture * mask)
                     + self.norm_weight * (((texture - clean) * mask) ** 2).mean())
             self._log(loss)
+            bar.set_postfix(loss=f"{self.loss_history[-1]:.4f}", refresh=False)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()

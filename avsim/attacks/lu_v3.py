@@ -7,7 +7,7 @@ video-like drive-by sequence of the detector's stop-sign score, so the frame tha
 trigger the brake first is the one pushed down; plus tv_weight * total variation, which
 keeps the perturbation smooth and inconspicuous.
 Constraint: |delta| <= eps on the sign face (L-infinity), eps = 0.15 by default.
-How it differs from `lu_v2`: a smaller budget (0.15 against 0.25), a worst-frame rather
+How it differs from `lu_v2`: a smaller budget (0.15 against 0.2), a worst-frame rather
 than mean-frame objective, and a smoothness term.
 """
 

@@ -1,0 +1,145 @@
+"""`avsim attack eval`: how each texture fares in real MuJoCo renders (not the EOT proxy).
+
+For the clean sign and each attacked texture, with the shipped detector on full 640x480
+frames of the front and the side camera:
+- the stop-sign confidence at fixed bumper-to-sign distances, per placement;
+- a drive-by from `DRIVE_BY_FAR_M` to `DRIVE_BY_NEAR_M`: the fraction of frames, among those
+  in which the sign is in view (by the oracle's segmentation), where the detector reports it
+  at or above the baseline threshold, and the first-detection distance;
+- a Fig. 3-like grid of the front camera at 30 m with the detector's box and score drawn.
+
+A detection counts for the sign only if its box overlaps the sign's ground-truth box
+(IoU >= 0.3), so a false positive elsewhere never props up an attacked sign's score.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from avsim.config import PerceptionConfig, SimConfig, with_overrides
+from avsim.loop import ClosedLoop
+from avsim.perception.ap import box_iou
+from avsim.perception.factory import build_perception
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
+
+FIXED_DISTANCES_M = (10.0, 20.0, 30.0, 40.0, 50.0)
+DRIVE_BY_FAR_M, DRIVE_BY_NEAR_M, DRIVE_BY_STEP_M = 80.0, 4.0, 1.0
+MATCH_IOU = 0.3
+CAMERAS = ("front", "side")
+
+
+@dataclass
+class TextureReport:
+    """One texture in one town, per placement and camera. Distances: front bumper to sign [m]."""
+
+    sign: str
+    conf_at_m: dict[str, dict[str, dict[float, float]]] = field(default_factory=dict)  # camera -> placement -> dist -> conf
+    detection_rate: dict[str, dict[str, float]] = field(default_factory=dict)  # camera -> placement -> rate
+    first_detection_m: dict[str, dict[str, float | None]] = field(default_factory=dict)
+    drive_by: dict[str, dict[str, list[tuple[float, float]]]] = field(default_factory=dict)  # (dist, conf) pairs
+
+    def mean_conf(self, camera: str = "front") -> float:
+        values = [c for per_dist in self.conf_at_m[camera].values() for c in per_dist.values()]
+        return float(np.mean(values))
+
+
+def _sign_confidence(loop: ClosedLoop, oracle, camera: str) -> tuple[float | None, float]:
+    """(confidence of the detection matching the stop sign or 0, None if the sign is not in view)."""
+    truth = [d for d in oracle.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
+    if not truth:
+        return None, 0.0
+    found = [d for d in loop.perception.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
+    if not found:
+        return 0.0, 0.0
+    ious = box_iou(np.array([d.box_xyxy_px for d in found]), np.array([truth[0].box_xyxy_px]))[:, 0]
+    matched = [d.confidence for d, iou in zip(found, ious) if iou >= MATCH_IOU]
+    return max(matched, default=0.0), truth[0].height_px
+
+
+def _place(loop: ClosedLoop, bumper_to_sign_m: float) -> None:
+    bumper_x = loop.scene.stop_sign.base_pos_m[0] - bumper_to_sign_m
+    loop.vehicle.place(bumper_x - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+
+
+def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshold: float,
+                     base: SimConfig | None = None) -> TextureReport:
+    """Measure one texture (a `--sign` value) in `town` at each placement."""
+    report = TextureReport(sign)
+    for camera in CAMERAS:
+        for table in (report.conf_at_m, report.detection_rate, report.first_detection_m, report.drive_by):
+            table[camera] = {}
+    for placement in placements:
+        config = with_overrides(base or SimConfig(), {"scenario": {"town": town, "placement": placement, "sign": sign},
+                                                      "perception": {"kind": "detector", "min_confidence": 0.05}})
+        loop = ClosedLoop(config)
+        try:
+            oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=4), loop.model, loop.scene)
+            fixed = {camera: {} for camera in CAMERAS}
+            for dist_m in FIXED_DISTANCES_M:
+                _place(loop, dist_m)
+                for camera in CAMERAS:
+                    conf, _ = _sign_confidence(loop, oracle, camera)
+                    fixed[camera][dist_m] = conf if conf is not None else float("nan")
+            sequence = {camera: [] for camera in CAMERAS}
+            for dist_m in np.arange(DRIVE_BY_FAR_M, DRIVE_BY_NEAR_M - 1e-9, -DRIVE_BY_STEP_M):
+                _place(loop, float(dist_m))
+                for camera in CAMERAS:
+                    conf, _ = _sign_confidence(loop, oracle, camera)
+                    if conf is not None:
+                        sequence[camera].append((float(dist_m), conf))
+        finally:
+            loop.close()
+        for camera in CAMERAS:
+            report.conf_at_m[camera][placement] = fixed[camera]
+            seen = sequence[camera]
+            hits = [d for d, c in seen if c >= threshold]
+            report.detection_rate[camera][placement] = len(hits) / len(seen) if seen else float("nan")
+            report.first_detection_m[camera][placement] = max(hits) if hits else None
+            report.drive_by[camera][placement] = seen
+    return report
+
+
+def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement: str = "standard",
+              dist_m: float = 30.0, base: SimConfig | None = None) -> Path:
+    """A grid of the front camera's view of each texture at `dist_m`, cropped around the sign,
+    with the detector's stop-sign box and score drawn (like the study's Fig. 3)."""
+    tiles = []
+    for sign in signs:
+        config = with_overrides(base or SimConfig(), {"scenario": {"town": town, "placement": placement, "sign": sign},
+                                                      "perception": {"kind": "detector", "min_confidence": 0.05}})
+        loop = ClosedLoop(config)
+        try:
+            _place(loop, dist_m)
+            image = loop.rig.render_rgb(loop.data, "front")[..., ::-1].copy()
+            oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=4), loop.model, loop.scene)
+            truth = [d for d in oracle.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"][0]
+            found = [d for d in loop.perception.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"]
+        finally:
+            loop.close()
+        cx, cy = (truth.box_xyxy_px[0] + truth.box_xyxy_px[2]) / 2, (truth.box_xyxy_px[1] + truth.box_xyxy_px[3]) / 2
+        half = 40
+        x0 = int(np.clip(cx - half, 0, image.shape[1] - 2 * half))
+        y0 = int(np.clip(cy - half, 0, image.shape[0] - 2 * half))
+        crop = image[y0:y0 + 2 * half, x0:x0 + 2 * half]
+        tile = cv2.resize(crop, (320, 320), interpolation=cv2.INTER_NEAREST)
+        scale = 320 / (2 * half)
+        label = "no detection"
+        if found:
+            best = found[0]
+            bx0, by0, bx1, by1 = ((v - o) * scale for v, o in zip(best.box_xyxy_px, (x0, y0, x0, y0)))
+            cv2.rectangle(tile, (int(bx0), int(by0)), (int(bx1), int(by1)), (0, 255, 0), 2)
+            label = f"stop_sign {best.confidence:.2f}"
+        cv2.rectangle(tile, (0, 0), (320, 44), (0, 0, 0), -1)
+        cv2.putText(tile, sign, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+        cv2.putText(tile, label, (8, 38), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 255, 0), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    while len(tiles) % 3:
+        tiles.append(np.zeros_like(tiles[0]))
+    rows = [np.hstack(tiles[i:i + 3]) for i in range(0, len(tiles), 3)]
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(out_path), np.vstack(rows))
+    return out_path

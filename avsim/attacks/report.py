@@ -1,0 +1,76 @@
+"""Markdown and figures for `avsim attack eval`."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from avsim.attacks.evaluate import FIXED_DISTANCES_M, TextureReport
+
+
+def _fmt(value: float | None, digits: int = 2) -> str:
+    return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.{digits}f}"
+
+
+def budget_of(sign: str, texture_dir: Path) -> dict:
+    """The generation record (OUT.json beside OUT.png) of a texture name, if there is one."""
+    path = texture_dir / f"{sign}.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def plot_drive_by(reports: list[TextureReport], placement: str, out_path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), dpi=120, sharey=True)
+    for ax, camera in zip(axes, ("front", "side")):
+        for report in reports:
+            points = report.drive_by[camera].get(placement, [])
+            if points:
+                dist, conf = zip(*points)
+                ax.plot(dist, conf, lw=1.2, label=report.sign, ls="-" if report.sign == "clean" else "--")
+        ax.set_title(f"{camera} camera, {placement} placement")
+        ax.set_xlabel("front bumper to stop sign [m]")
+        ax.invert_xaxis()
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("stop-sign confidence (MuJoCo render)")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_path)
+    plt.close(fig)
+    return out_path
+
+
+def write_attack_report(reports: list[TextureReport], town: str, threshold: float, texture_dir: Path,
+                        out_dir: Path, fig3_path: Path) -> Path:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    placements = list(reports[0].conf_at_m["front"])
+    plots = [plot_drive_by(reports, p, out_dir / f"drive_by_{p}.png") for p in placements]
+    lines = [f"# Attacked stop signs in MuJoCo renders ({town})", "",
+             f"Shipped detector on full 640x480 frames; a detection counts if it overlaps the sign's "
+             f"ground-truth box (IoU >= 0.3). Threshold for detection rate and first detection: {threshold}.", "",
+             "| sign | SSIM | L-inf | mean conf front | mean conf side | " + " | ".join(f"first det. front {p} [m]" for p in placements) + " |",
+             "|---|---|---|---|---|" + "---|" * len(placements)]
+    for r in reports:
+        budget = budget_of(r.sign, texture_dir)
+        lines.append(f"| {r.sign} | {_fmt(budget.get('ssim', 1.0 if r.sign == 'clean' else None))} | "
+                     f"{_fmt(budget.get('linf', 0.0 if r.sign == 'clean' else None))} | {_fmt(r.mean_conf('front'))} | "
+                     f"{_fmt(r.mean_conf('side'))} | " + " | ".join(_fmt(r.first_detection_m["front"][p], 0) for p in placements) + " |")
+    for camera in ("front", "side"):
+        lines += ["", f"## {camera} camera: confidence at fixed distances", "",
+                  "| sign | placement | " + " | ".join(f"{d:.0f} m" for d in FIXED_DISTANCES_M) + " | detection rate | first detection [m] |",
+                  "|---|---|" + "---|" * len(FIXED_DISTANCES_M) + "---|---|"]
+        for r in reports:
+            for p in placements:
+                confs = r.conf_at_m[camera][p]
+                lines.append(f"| {r.sign} | {p} | " + " | ".join(_fmt(confs[d]) for d in FIXED_DISTANCES_M)
+                             + f" | {_fmt(r.detection_rate[camera][p])} | {_fmt(r.first_detection_m[camera][p], 0)} |")
+    lines += ["", "'-' at a fixed distance: the sign is out of that camera's view there.", "",
+              f"![front camera at 30 m]({fig3_path.name})", ""]
+    lines += [f"![drive-by, {p}]({plot.name})" for p, plot in zip(placements, plots)]
+    path = out_dir / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
