@@ -59,9 +59,8 @@ def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
                         help="override any config key, e.g. --set policy.baseline_brake=0.9 (repeatable)")
 
 
-def _config_from_args(args: argparse.Namespace):
-    from avsim.config import SimConfig, with_overrides
-
+def _flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The scenario flags and --set as one nested override mapping (--set wins over flags)."""
     flags = {
         "scenario": {"town": args.town, "placement": args.placement, "sign": args.sign, "speed_kmh": args.speed_kmh, "seed": args.seed},
         "loop": {"physics_dt_s": args.physics_dt_s, "control_dt_s": args.control_dt_s},
@@ -69,26 +68,61 @@ def _config_from_args(args: argparse.Namespace):
         "perception": {"kind": getattr(args, "perception", None)},
     }
     overrides = {section: {k: v for k, v in values.items() if v is not None} for section, values in flags.items()}
-    return with_overrides(SimConfig(), _merge(overrides, _parse_set(args.set)))
+    return _merge(overrides, _parse_set(args.set))
+
+
+def _config_from_args(args: argparse.Namespace):
+    from avsim.config import SimConfig, with_overrides
+
+    return with_overrides(SimConfig(), _flag_overrides(args))
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    import contextlib
     import time
 
     from avsim.loop import ClosedLoop, run_config
     from avsim.metrics import write_json_atomic
     from avsim.summary import format_summary
 
-    config = _config_from_args(args)
-    if args.rrd:
-        # As run_config, with the recorder attached; the .rrd appears only if the run completes.
-        from avsim.recording.rerun_log import RunRecorder
+    if args.config:
+        from avsim.config import with_overrides
+        from avsim.experiments.spec import load_experiment
 
+        # The flags and --set apply on top of the cell, as they do on top of the defaults
+        # (same precedence: --set over flags over the cell).
+        overrides = _flag_overrides(args)
+        experiment = load_experiment(args.config)
+        cell = experiment.cell(args.cell)
+        # Run (cell, seed) exactly as the experiment's batch would, [vary] draws included;
+        # the seed is 0 unless --seed or --set scenario.seed names another.
+        seed = with_overrides(cell.config, overrides).scenario.seed
+        config = with_overrides(experiment.config_for(cell, seed), overrides)
+    elif args.cell is not None:
+        raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
+    else:
+        config = _config_from_args(args)
+    if args.rrd or args.mp4:
+        # As run_config, with the recorders attached; each file appears only if the run completes.
         start = time.perf_counter()
         loop = ClosedLoop(config)
         try:
-            with RunRecorder(loop, args.rrd) as recorder:
-                result = loop.run(on_step=recorder.on_step)
+            with contextlib.ExitStack() as recorders:
+                hooks = []
+                if args.rrd:
+                    from avsim.recording.rerun_log import RunRecorder
+
+                    hooks.append(recorders.enter_context(RunRecorder(loop, args.rrd)).on_step)
+                if args.mp4:
+                    from avsim.recording.video import VideoRecorder
+
+                    hooks.append(recorders.enter_context(VideoRecorder(loop, args.mp4)).on_step)
+
+                def on_step(loop_: ClosedLoop, record) -> None:
+                    for hook in hooks:
+                        hook(loop_, record)
+
+                result = loop.run(on_step=on_step)
         finally:
             loop.close()
         wall_s = time.perf_counter() - start
@@ -283,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--perception", help="perception: detector (trained network on RGB) or oracle (ground-truth boxes)")
     run.add_argument("--json", help="write the result record to this JSON file")
     run.add_argument("--rrd", help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
+    run.add_argument("--mp4", help="write a video of the front camera with the detections, speed and brake to this .mp4 file")
+    run.add_argument("--config", help="experiment file (experiments/*.toml): run one of its cells; the flags above apply on top")
+    run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell)")
     run.set_defaults(func=_cmd_run)
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")

@@ -4,8 +4,8 @@ For the clean sign and each attacked texture, with the shipped detector on full 
 frames of the front and the side camera:
 - the stop-sign confidence at fixed bumper-to-sign distances, per placement;
 - a drive-by from `DRIVE_BY_FAR_M` to `DRIVE_BY_NEAR_M`: the fraction of frames, among those
-  in which the sign is in view (by the oracle's segmentation), where the detector reports it
-  at or above the baseline threshold, and the first-detection distance;
+  in which the sign is in view and in range (by the oracle's segmentation), where the
+  detector reports it at or above the baseline threshold, and the first-detection distance;
 - a Fig. 3-like grid of the front camera at 30 m with the detector's box and score drawn.
 
 A detection counts for the sign only if its box overlaps the sign's ground-truth box
@@ -32,6 +32,11 @@ MATCH_IOU = 0.3
 CAMERAS = ("front", "side")
 
 
+def display_name(sign: str) -> str:
+    """'clean', a texture name, or a PNG path's file stem."""
+    return Path(sign).stem if sign.lower().endswith(".png") else sign
+
+
 @dataclass
 class TextureReport:
     """One texture in one town, per placement and camera. Distances: front bumper to sign [m]."""
@@ -47,17 +52,20 @@ class TextureReport:
         return float(np.mean(values))
 
 
-def _sign_confidence(loop: ClosedLoop, oracle, camera: str) -> tuple[float | None, float]:
-    """(confidence of the detection matching the stop sign or 0, None if the sign is not in view)."""
+def _sign_confidence(loop: ClosedLoop, oracle, camera: str) -> tuple[float | None, float, float]:
+    """(confidence of the best detection matching the stop sign, or 0; its box height [px];
+    the true box height [px]). The confidence is None when the sign is not in the camera's view."""
     truth = [d for d in oracle.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
     if not truth:
-        return None, 0.0
+        return None, 0.0, 0.0
+    true_height_px = truth[0].height_px
     found = [d for d in loop.perception.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
-    if not found:
-        return 0.0, 0.0
-    ious = box_iou(np.array([d.box_xyxy_px for d in found]), np.array([truth[0].box_xyxy_px]))[:, 0]
-    matched = [d.confidence for d, iou in zip(found, ious) if iou >= MATCH_IOU]
-    return max(matched, default=0.0), truth[0].height_px
+    ious = box_iou(np.array([d.box_xyxy_px for d in found]).reshape(-1, 4), np.array([truth[0].box_xyxy_px]))[:, 0]
+    matched = [d for d, iou in zip(found, ious) if iou >= MATCH_IOU]
+    if not matched:
+        return 0.0, 0.0, true_height_px
+    best = max(matched, key=lambda d: d.confidence)
+    return best.confidence, best.height_px, true_height_px
 
 
 def _place(loop: ClosedLoop, bumper_to_sign_m: float) -> None:
@@ -67,14 +75,21 @@ def _place(loop: ClosedLoop, bumper_to_sign_m: float) -> None:
 
 def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshold: float,
                      base: SimConfig | None = None) -> TextureReport:
-    """Measure one texture (a `--sign` value) in `town` at each placement."""
+    """Measure one texture (a `--sign` value) in `town` at each placement.
+
+    Confidences are the detector's at any box size; the detection rate and the first
+    detection count a frame as the car's pipeline does: confidence >= `threshold` and a box
+    at least `perception.min_box_height_px` tall.
+    """
+    base = base or SimConfig()
+    min_height_px = base.perception.min_box_height_px
     report = TextureReport(sign)
     for camera in CAMERAS:
         for table in (report.conf_at_m, report.detection_rate, report.first_detection_m, report.drive_by):
             table[camera] = {}
     for placement in placements:
-        config = with_overrides(base or SimConfig(), {"scenario": {"town": town, "placement": placement, "sign": sign},
-                                                      "perception": {"kind": "detector", "min_confidence": 0.05}})
+        config = with_overrides(base, {"scenario": {"town": town, "placement": placement, "sign": sign},
+                                       "perception": {"kind": "detector", "min_confidence": 0.05, "min_box_height_px": 1}})
         loop = ClosedLoop(config)
         try:
             oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=4), loop.model, loop.scene)
@@ -82,24 +97,26 @@ def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshol
             for dist_m in FIXED_DISTANCES_M:
                 _place(loop, dist_m)
                 for camera in CAMERAS:
-                    conf, _ = _sign_confidence(loop, oracle, camera)
+                    conf, _, _ = _sign_confidence(loop, oracle, camera)
                     fixed[camera][dist_m] = conf if conf is not None else float("nan")
             sequence = {camera: [] for camera in CAMERAS}
             for dist_m in np.arange(DRIVE_BY_FAR_M, DRIVE_BY_NEAR_M - 1e-9, -DRIVE_BY_STEP_M):
                 _place(loop, float(dist_m))
                 for camera in CAMERAS:
-                    conf, _ = _sign_confidence(loop, oracle, camera)
+                    conf, height_px, true_height_px = _sign_confidence(loop, oracle, camera)
                     if conf is not None:
-                        sequence[camera].append((float(dist_m), conf))
+                        sequence[camera].append((float(dist_m), conf, height_px, true_height_px))
         finally:
             loop.close()
         for camera in CAMERAS:
             report.conf_at_m[camera][placement] = fixed[camera]
             seen = sequence[camera]
-            hits = [d for d, c in seen if c >= threshold]
-            report.detection_rate[camera][placement] = len(hits) / len(seen) if seen else float("nan")
+            hits = [d for d, c, h, _ in seen if c >= threshold and h >= min_height_px]
+            # The rate counts frames in range: the sign is in view and tall enough to be reported.
+            in_range = [d for d, _, _, true_h in seen if true_h >= min_height_px]
+            report.detection_rate[camera][placement] = len(set(hits) & set(in_range)) / len(in_range) if in_range else float("nan")
             report.first_detection_m[camera][placement] = max(hits) if hits else None
-            report.drive_by[camera][placement] = seen
+            report.drive_by[camera][placement] = [(d, c) for d, c, _, _ in seen]
     return report
 
 
@@ -110,7 +127,8 @@ def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement:
     tiles = []
     for sign in signs:
         config = with_overrides(base or SimConfig(), {"scenario": {"town": town, "placement": placement, "sign": sign},
-                                                      "perception": {"kind": "detector", "min_confidence": 0.05}})
+                                                      "perception": {"kind": "detector", "min_confidence": 0.05,
+                                                                     "min_box_height_px": 1}})
         loop = ClosedLoop(config)
         try:
             _place(loop, dist_m)
@@ -134,7 +152,7 @@ def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement:
             cv2.rectangle(tile, (int(bx0), int(by0)), (int(bx1), int(by1)), (0, 255, 0), 2)
             label = f"stop_sign {best.confidence:.2f}"
         cv2.rectangle(tile, (0, 0), (320, 44), (0, 0, 0), -1)
-        cv2.putText(tile, sign, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+        cv2.putText(tile, display_name(sign), (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
         cv2.putText(tile, label, (8, 38), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 255, 0), 1, cv2.LINE_AA)
         tiles.append(tile)
     while len(tiles) % 3:

@@ -6,7 +6,7 @@ import json
 import math
 from pathlib import Path
 
-from avsim.attacks.evaluate import FIXED_DISTANCES_M, TextureReport
+from avsim.attacks.evaluate import FIXED_DISTANCES_M, TextureReport, display_name
 
 
 def _fmt(value: float | None, digits: int = 2) -> str:
@@ -15,7 +15,7 @@ def _fmt(value: float | None, digits: int = 2) -> str:
 
 def budget_of(sign: str, texture_dir: Path) -> dict:
     """The generation record (OUT.json beside OUT.png) of a texture name, if there is one."""
-    path = texture_dir / f"{sign}.json"
+    path = Path(sign).with_suffix(".json") if sign.lower().endswith(".png") else texture_dir / f"{sign}.json"
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
@@ -31,7 +31,7 @@ def plot_drive_by(reports: list[TextureReport], placement: str, out_path: Path) 
             points = report.drive_by[camera].get(placement, [])
             if points:
                 dist, conf = zip(*points)
-                ax.plot(dist, conf, lw=1.2, label=report.sign, ls="-" if report.sign == "clean" else "--")
+                ax.plot(dist, conf, lw=1.2, label=display_name(report.sign), ls="-" if report.sign == "clean" else "--")
         ax.set_title(f"{camera} camera, {placement} placement")
         ax.set_xlabel("front bumper to stop sign [m]")
         ax.invert_xaxis()
@@ -56,7 +56,7 @@ def write_attack_report(reports: list[TextureReport], town: str, threshold: floa
              "|---|---|---|---|---|" + "---|" * len(placements)]
     for r in reports:
         budget = budget_of(r.sign, texture_dir)
-        lines.append(f"| {r.sign} | {_fmt(budget.get('ssim', 1.0 if r.sign == 'clean' else None))} | "
+        lines.append(f"| {display_name(r.sign)} | {_fmt(budget.get('ssim', 1.0 if r.sign == 'clean' else None))} | "
                      f"{_fmt(budget.get('linf', 0.0 if r.sign == 'clean' else None))} | {_fmt(r.mean_conf('front'))} | "
                      f"{_fmt(r.mean_conf('side'))} | " + " | ".join(_fmt(r.first_detection_m["front"][p], 0) for p in placements) + " |")
     for camera in ("front", "side"):
@@ -66,7 +66,7 @@ def write_attack_report(reports: list[TextureReport], town: str, threshold: floa
         for r in reports:
             for p in placements:
                 confs = r.conf_at_m[camera][p]
-                lines.append(f"| {r.sign} | {p} | " + " | ".join(_fmt(confs[d]) for d in FIXED_DISTANCES_M)
+                lines.append(f"| {display_name(r.sign)} | {p} | " + " | ".join(_fmt(confs[d]) for d in FIXED_DISTANCES_M)
                              + f" | {_fmt(r.detection_rate[camera][p])} | {_fmt(r.first_detection_m[camera][p], 0)} |")
     lines += ["", "'-' at a fixed distance: the sign is out of that camera's view there.", "",
               f"![front camera at 30 m]({fig3_path.name})", ""]

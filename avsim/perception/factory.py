@@ -21,7 +21,7 @@ def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo)
     # Imported here so oracle-only runs never import the network code.
     from avsim.perception.detector.perception import DetectorPerception
 
-    return DetectorPerception(config.weights_path, config.min_confidence)
+    return DetectorPerception(config.weights_path, config.min_confidence, config.min_box_height_px)
 
 
 PERCEPTIONS.add("detector", _detector)

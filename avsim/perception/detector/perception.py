@@ -24,13 +24,17 @@ class DetectorPerception(Perception):
 
     Every detection at or above `min_confidence` is reported; the braking policy
     applies its own, higher threshold, so a run's records also show the weak
-    detections an attack leaves behind.
+    detections an attack leaves behind. Boxes shorter than `min_box_height_px` are
+    dropped, as the oracle drops them: the same range for both perceptions (see
+    `PerceptionConfig.min_box_height_px`).
     """
 
     name = "detector"
 
-    def __init__(self, weights_path: str, min_confidence: float) -> None:
+    def __init__(self, weights_path: str, min_confidence: float, min_box_height_px: float = 1.0) -> None:
         self.runner = SignDetectorRunner(resolve_weights_path(weights_path), conf_threshold=min_confidence)
+        self.min_box_height_px = min_box_height_px
 
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
-        return self.runner.detect(rig.render_rgb(data, camera), camera)
+        detections = self.runner.detect(rig.render_rgb(data, camera), camera)
+        return [d for d in detections if d.height_px >= self.min_box_height_px]

@@ -1,0 +1,246 @@
+"""Experiment files (`experiments/*.toml`): small overrides of the defaults, as named cells.
+
+    title = "Table III: stopping positions, Town07 standard"
+    seeds = 5                       # each cell runs with scenario.seed = 0 .. seeds-1 (default 5)
+    [defaults]                      # applied to every cell; the same keys as `avsim run --set`
+    scenario = { town = "town07", placement = "standard", speed_kmh = 85 }
+    [vary]                          # optional: drawn per seed, uniformly from [low, high]
+    scenario = { sun_elevation_deg = [30, 70] }
+    [[cells]]
+    name = "clean sign, baseline"
+    scenario = { sign = "clean" }
+    policy = { name = "baseline" }
+
+A cell's config is `SimConfig()` with the defaults, then the cell's own keys, on top.
+Everything a run needs is checked when the file is loaded, so a typo fails before a
+long batch starts: unknown keys, wrong types and out-of-range values (by the config
+dataclasses) and registry names (town, placement, policy, perception). Sign textures
+are the exception: the scene resolves them when it is built, so a file may name a
+texture that an attack run has not written yet.
+
+What differs between the runs of one cell: `scenario.seed`, which seeds the start
+jitter (up to `scenario.start_jitter_m` along the road), and the keys in `[vary]`,
+drawn from a generator seeded by the run's seed alone, so seed k has the same lighting
+in every cell and cells compare in pairs. The simulator has no sensor-noise
+model, so "sensor noise" cannot be varied; lighting can (`scenario.sun_*`). Because
+`runs()` sets the seed, a file may not set `scenario.seed` itself.
+
+Every error is a one-line `ConfigError` that names the file, where in it (for example
+`cells[2] "attacked sign, adjusted"`) and the key.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from avsim.config import SimConfig, with_overrides
+from avsim.errors import ConfigError
+
+TOP_LEVEL_KEYS = ("title", "seeds", "defaults", "vary", "cells")
+DEFAULT_SEEDS = 5
+# Second word of the [vary] generator's seed, so its draws are independent of the start
+# jitter, which ClosedLoop draws from default_rng(scenario.seed).
+_VARY_STREAM = 1
+# Drawn values are rounded so the saved configs read cleanly; far below any lighting effect.
+_VARY_DECIMALS = 3
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One named cell of a table or figure: a fully resolved config.
+
+    `config.scenario.seed` is the default (0); `Experiment.runs()` sets it per run.
+    """
+
+    name: str
+    config: SimConfig
+
+
+class Run(NamedTuple):
+    """One simulation of an experiment: a cell at one seed, with its final config."""
+
+    cell_name: str
+    seed: int
+    config: SimConfig
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A loaded experiment file.
+
+    vary: (dotted key, low, high) per key drawn uniformly per seed, sorted by key.
+    """
+
+    path: Path
+    title: str
+    seeds: int
+    cells: tuple[Cell, ...]
+    vary: tuple[tuple[str, float, float], ...] = ()
+
+    def cell(self, name: str | None = None) -> Cell:
+        """The cell called `name`; the first cell when `name` is None."""
+        if name is None:
+            return self.cells[0]
+        for cell in self.cells:
+            if cell.name == name:
+                return cell
+        names = ", ".join(f'"{c.name}"' for c in self.cells)
+        raise ConfigError(f"{self.path}: no cell named \"{name}\"; cells: {names}")
+
+    def runs(self) -> list[Run]:
+        """Every cell at seeds 0 .. seeds-1, cell by cell."""
+        return [Run(cell.name, seed, self.config_for(cell, seed)) for cell in self.cells for seed in range(self.seeds)]
+
+    def config_for(self, cell: Cell, seed: int) -> SimConfig:
+        """`cell`'s config for one run: scenario.seed = `seed`, [vary] keys drawn from `seed`."""
+        rng = np.random.default_rng((seed, _VARY_STREAM))
+        overrides: dict[str, Any] = {"scenario": {"seed": seed}}
+        for key, low, high in self.vary:
+            overrides = _deep_merge(overrides, _nested(key, round(float(rng.uniform(low, high)), _VARY_DECIMALS)))
+        return with_overrides(cell.config, overrides)
+
+
+def load_experiment(path: str | os.PathLike) -> Experiment:
+    """Read and check an experiment file; see the module docstring for its format."""
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            raw = tomllib.load(handle)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: experiment file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        # tomllib's message names the line and column: "... (at line 3, column 7)".
+        raise ConfigError(f"{path}: malformed TOML: {exc}") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read experiment file ({exc.strerror})") from None
+
+    unknown = sorted(set(raw) - set(TOP_LEVEL_KEYS))
+    if unknown:
+        raise ConfigError(f"{path}: unknown top-level key '{unknown[0]}'; valid keys: {', '.join(TOP_LEVEL_KEYS)}")
+    title = raw.get("title", path.stem)
+    if not isinstance(title, str):
+        raise ConfigError(f"{path}: 'title' must be a string, got {title!r}")
+    seeds = raw.get("seeds", DEFAULT_SEEDS)
+    if type(seeds) is not int or seeds < 1:
+        raise ConfigError(f"{path}: 'seeds' must be an integer >= 1, got {seeds!r}")
+
+    with _located(path, "[defaults]"):
+        defaults = _table(raw.get("defaults", {}), "defaults")
+        _reject_seed(defaults)
+        _check_registry_names(with_overrides(SimConfig(), defaults))
+    with _located(path, "[vary]"):
+        vary = _parse_vary(raw.get("vary", {}))
+    cells = _parse_cells(path, raw.get("cells"), defaults, vary)
+    return Experiment(path=path, title=title, seeds=seeds, cells=cells, vary=vary)
+
+
+# ---- parts of the file -------------------------------------------------------------------
+
+def _parse_cells(path: Path, raw_cells: Any, defaults: dict[str, Any],
+                 vary: tuple[tuple[str, float, float], ...]) -> tuple[Cell, ...]:
+    if not isinstance(raw_cells, list) or not raw_cells:
+        raise ConfigError(f"{path}: no cells; add at least one [[cells]] table with a name")
+    cells: list[Cell] = []
+    for index, raw_cell in enumerate(raw_cells):
+        where = f"cells[{index}]"
+        with _located(path, where):
+            overrides = dict(_table(raw_cell, where))
+            name = overrides.pop("name", None)
+            if not isinstance(name, str) or not name.strip():
+                raise ConfigError(f"'name' must be a non-empty string, got {name!r}")
+        where = f'{where} "{name}"'
+        with _located(path, where):
+            if any(c.name == name for c in cells):
+                raise ConfigError("duplicate cell name; each cell needs its own")
+            _reject_seed(overrides)
+            config = with_overrides(SimConfig(), _deep_merge(defaults, overrides))
+            _check_registry_names(config)
+        # Both ends of every [vary] range must be valid for this cell, so every draw is.
+        with _located(path, f"[vary], applied to {where}"):
+            for key, low, high in vary:
+                for value in (low, high):
+                    with_overrides(config, _nested(key, value))
+        cells.append(Cell(name, config))
+    return tuple(cells)
+
+
+def _parse_vary(raw: Any) -> tuple[tuple[str, float, float], ...]:
+    ranges = []
+    for section, keys in _table(raw, "vary").items():
+        for key, bounds in _table(keys, f"vary.{section}").items():
+            dotted = f"{section}.{key}"
+            if dotted == "scenario.seed":
+                raise ConfigError("scenario.seed cannot vary: it is the run's seed, set by 'seeds'")
+            numeric = isinstance(bounds, list) and len(bounds) == 2 and all(
+                isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds)
+            if not numeric or not bounds[0] <= bounds[1]:
+                raise ConfigError(f"'{dotted}' must be a range [low, high] of two numbers with low <= high, got {bounds!r}")
+            # Floats only: an int field rejects the float, naming the key.
+            with_overrides(SimConfig(), _nested(dotted, float(bounds[0])))
+            ranges.append((dotted, float(bounds[0]), float(bounds[1])))
+    return tuple(sorted(ranges))
+
+
+def _check_registry_names(config: SimConfig) -> None:
+    """Fail on an unknown town, placement, policy or perception, as the run would later."""
+    # Imported here: the registries pull in the world, control and perception packages.
+    from avsim.control.policies import POLICIES
+    from avsim.perception.factory import PERCEPTIONS
+    from avsim.world.towns import PLACEMENTS, TOWNS
+
+    for key, registry, name in (("scenario.town", TOWNS, config.scenario.town),
+                                ("scenario.placement", PLACEMENTS, config.scenario.placement),
+                                ("policy.name", POLICIES, config.policy.name),
+                                ("perception.kind", PERCEPTIONS, config.perception.kind)):
+        if name not in registry:
+            try:
+                registry.get(name)
+            except ConfigError as exc:
+                raise ConfigError(f"{key}: {exc}") from None
+
+
+def _reject_seed(overrides: Mapping[str, Any]) -> None:
+    scenario = overrides.get("scenario")
+    if isinstance(scenario, Mapping) and "seed" in scenario:
+        raise ConfigError("scenario.seed is set per run (0 .. seeds-1); set the top-level 'seeds' instead")
+
+
+# ---- helpers -------------------------------------------------------------------------------
+
+@contextmanager
+def _located(path: Path, where: str) -> Iterator[None]:
+    """Prefix a ConfigError raised inside with the file and the place in it."""
+    try:
+        yield
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {where}: {exc}") from None
+
+
+def _table(value: Any, name: str) -> dict[str, Any]:
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"'{name}' must be a table of keys, got {value!r}")
+    return dict(value)
+
+
+def _nested(dotted: str, value: Any) -> dict[str, Any]:
+    """A dotted key and its value as a nested override: ("a.b", 1) -> {"a": {"b": 1}}."""
+    node: Any = value
+    for part in reversed(dotted.split(".")):
+        node = {part: node}
+    return node
+
+
+def _deep_merge(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in extra.items():
+        both_tables = isinstance(value, Mapping) and isinstance(merged.get(key), Mapping)
+        merged[key] = _deep_merge(merged[key], value) if both_tables else value
+    return merged

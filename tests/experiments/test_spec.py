@@ -1,0 +1,244 @@
+"""Experiment files: the shipped tables load and expand; every malformed file is a one-line ConfigError."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import avsim.loop
+from avsim import cli
+from avsim.config import SimConfig, with_overrides
+from avsim.errors import ConfigError
+from avsim.experiments import load_experiment
+
+EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
+TABLE3 = EXPERIMENTS_DIR / "table3_stop_positions.toml"
+DEFENDED_CELLS = [("town07", "standard"), ("town03", "far"), ("town03", "near"), ("town10", "far"), ("town10", "near")]
+
+# file name -> (sign, policy) of each cell, in order
+SHIPPED = {
+    "table3_stop_positions.toml": [("clean", "baseline"), ("lu_v2", "baseline"), ("lu_v2", "adjusted"),
+                                   ("lu_v2", "side_camera"), ("clean", "autopilot")],
+    "table1_clean_defended.toml": [("clean", "combined")] * 5,
+    "table2_attacked_defended.toml": [("lu_v2", "combined")] * 5,
+    "fig3_detection.toml": [(sign, "baseline") for sign in ("clean", "chen", "eykholt", "lu_v2", "lu_v3", "yang")],
+}
+
+
+# ---- the shipped files ------------------------------------------------------------------
+
+def test_every_shipped_file_is_tested():
+    assert sorted(p.name for p in EXPERIMENTS_DIR.glob("*.toml")) == sorted(SHIPPED)
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_shipped_file_loads_with_the_study_cells(name):
+    experiment = load_experiment(EXPERIMENTS_DIR / name)
+    assert experiment.seeds == 5
+    assert [(c.config.scenario.sign, c.config.policy.name) for c in experiment.cells] == SHIPPED[name]
+    for cell in experiment.cells:
+        assert cell.config.scenario.speed_kmh == 85.0
+        assert cell.config.perception.kind == "detector"
+    if "defended" in name:
+        assert [(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells] == DEFENDED_CELLS
+    else:
+        assert {(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells} == {("town07", "standard")}
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_shipped_file_expands_to_cells_times_seeds_runs(name):
+    experiment = load_experiment(EXPERIMENTS_DIR / name)
+    runs = experiment.runs()
+    assert len(runs) == len(SHIPPED[name]) * 5
+    assert [(r.cell_name, r.seed) for r in runs] == [(c.name, s) for c in experiment.cells for s in range(5)]
+    for run in runs:
+        assert run.config.scenario.seed == run.seed
+        # Apart from the seed and the varied lighting, a run is its cell.
+        cell = experiment.cell(run.cell_name)
+        assert run.config.policy == cell.config.policy
+        assert run.config.scenario.sign == cell.config.scenario.sign
+
+
+def test_runs_vary_lighting_per_seed_within_range_and_identically_across_cells():
+    experiment = load_experiment(TABLE3)
+    runs = experiment.runs()
+    by_seed: dict[int, set[tuple[float, float, float]]] = {}
+    for run in runs:
+        sc = run.config.scenario
+        assert 30 <= sc.sun_elevation_deg <= 70 and -180 <= sc.sun_azimuth_deg <= 180 and 0.8 <= sc.sun_intensity <= 1.2
+        by_seed.setdefault(run.seed, set()).add((sc.sun_elevation_deg, sc.sun_azimuth_deg, sc.sun_intensity))
+    assert all(len(lights) == 1 for lights in by_seed.values())  # seed k: same light in every cell
+    assert len({next(iter(lights)) for lights in by_seed.values()}) == 5  # and different seeds differ
+    assert runs == load_experiment(TABLE3).runs()  # deterministic
+
+
+def test_cell_config_is_defaults_then_cell_over_simconfig(tmp_path):
+    path = _write(tmp_path, """
+        title = "t"
+        seeds = 2
+        [defaults]
+        scenario = { town = "town03", speed_kmh = 60 }
+        policy = { name = "adjusted", brake_multiplier = 0.8 }
+        [[cells]]
+        name = "a"
+        scenario = { speed_kmh = 40 }
+        [[cells]]
+        name = "b"
+        policy = { name = "baseline" }
+    """)
+    experiment = load_experiment(path)
+    a, b = experiment.cells
+    assert a.config == with_overrides(SimConfig(), {"scenario": {"town": "town03", "speed_kmh": 40},
+                                                    "policy": {"name": "adjusted", "brake_multiplier": 0.8}})
+    assert b.config.scenario.speed_kmh == 60 and b.config.policy.name == "baseline" and b.config.policy.brake_multiplier == 0.8
+    assert experiment.vary == ()
+    assert [r.config for r in experiment.runs()] == [with_overrides(c.config, {"scenario": {"seed": s}})
+                                                     for c in (a, b) for s in (0, 1)]
+    assert experiment.cell() is a and experiment.cell("b") is b
+
+
+def test_textures_are_not_checked_at_load(tmp_path):
+    # An attack texture may be written after the experiment file: the scene checks it when built.
+    experiment = load_experiment(_write(tmp_path, '[[cells]]\nname = "x"\nscenario = { sign = "not_written_yet" }\n'))
+    assert experiment.cells[0].config.scenario.sign == "not_written_yet"
+    assert experiment.seeds == 5 and experiment.title == "exp"
+
+
+# ---- errors -------------------------------------------------------------------------------
+
+CELL = '[[cells]]\nname = "a"\n'
+BAD_FILES = {
+    "unknown_top_level_key": ('titel = "x"\n' + CELL, ["titel"]),
+    "unknown_config_key": (CELL + '[[cells]]\nname = "b"\n[[cells]]\nname = "c"\npolicy = { nme = "baseline" }\n',
+                           ["cells[2]", "policy.nme"]),
+    "unknown_section": (CELL + "polcy = { name = 'baseline' }\n", ["cells[0]", "polcy"]),
+    "unknown_default_key": ('[defaults]\nscenario = { twn = "town07" }\n' + CELL, ["[defaults]", "scenario.twn"]),
+    "negative_speed": ('[[cells]]\nname = "a"\nscenario = { speed_kmh = -5 }\n', ["cells[0]", "scenario.speed_kmh"]),
+    "wrong_type": ('[[cells]]\nname = "a"\nscenario = { speed_kmh = "fast" }\n', ["cells[0]", "scenario.speed_kmh"]),
+    "unknown_town": ('[[cells]]\nname = "a"\nscenario = { town = "town99" }\n', ["cells[0]", "scenario.town", "town99"]),
+    "unknown_policy": ('[defaults]\npolicy = { name = "brake_never" }\n' + CELL, ["[defaults]", "policy.name", "brake_never"]),
+    "malformed_toml": ('title = "x"\n[[cells]\nname = "a"\n', ["malformed TOML", "line 2"]),
+    "no_cells": ('title = "x"\n', ["cells"]),
+    "empty_cells": ('title = "x"\ncells = []\n', ["cells"]),
+    "duplicate_cell_names": (CELL + CELL, ["cells[1]", "duplicate", '"a"']),
+    "cell_without_name": ('[[cells]]\npolicy = { name = "baseline" }\n', ["cells[0]", "name"]),
+    "seeds_zero": ("seeds = 0\n" + CELL, ["seeds"]),
+    "seeds_not_int": ("seeds = 2.5\n" + CELL, ["seeds"]),
+    "seed_set_in_file": ('[[cells]]\nname = "a"\nscenario = { seed = 3 }\n', ["cells[0]", "scenario.seed"]),
+    "vary_unknown_key": ("[vary]\nscenario = { sun_elev = [1, 2] }\n" + CELL, ["[vary]", "scenario.sun_elev"]),
+    "vary_not_a_range": ("[vary]\nscenario = { sun_intensity = 1.0 }\n" + CELL, ["[vary]", "scenario.sun_intensity"]),
+    "vary_int_key": ("[vary]\nscenario = { layout_seed = [0, 9] }\n" + CELL, ["[vary]", "scenario.layout_seed"]),
+    "vary_out_of_range": ("[vary]\nscenario = { sun_intensity = [0.5, 3.0] }\n" + CELL, ["[vary]", "cells[0]", "scenario.sun_intensity"]),
+}
+
+
+@pytest.mark.parametrize("text, mentions", list(BAD_FILES.values()), ids=list(BAD_FILES))
+def test_bad_file_is_a_one_line_config_error_naming_file_and_key(tmp_path, text, mentions):
+    path = _write(tmp_path, text)
+    with pytest.raises(ConfigError) as excinfo:
+        load_experiment(path)
+    message = str(excinfo.value)
+    assert "\n" not in message
+    assert message.startswith(str(path))
+    for mention in mentions:
+        assert mention in message, message
+
+
+def test_missing_file_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="not found") as excinfo:
+        load_experiment(tmp_path / "nope.toml")
+    assert str(tmp_path / "nope.toml") in str(excinfo.value)
+
+
+def test_unknown_cell_name_lists_the_cells():
+    with pytest.raises(ConfigError, match='"autopilot"') as excinfo:
+        load_experiment(TABLE3).cell("autopilt")
+    assert "autopilt" in str(excinfo.value)
+
+
+# ---- avsim run --config ----------------------------------------------------------------------
+
+@pytest.fixture
+def captured_config(monkeypatch):
+    """Replace the simulation by a stub that captures the config `avsim run` resolved."""
+    captured: list[SimConfig] = []
+
+    class _Stop(Exception):
+        pass
+
+    def _run_config(config):
+        captured.append(config)
+        raise _Stop
+
+    def _boom(self, *args, **kwargs):
+        raise AssertionError("the CLI built a ClosedLoop; this test must not simulate")
+
+    monkeypatch.setattr(avsim.loop, "run_config", _run_config)
+    monkeypatch.setattr(avsim.loop.ClosedLoop, "__init__", _boom)
+
+    def resolve(argv: list[str]) -> SimConfig:
+        with pytest.raises(_Stop):
+            cli.main(["run", *argv])
+        return captured[-1]
+
+    return resolve
+
+
+def test_cli_runs_the_named_cell_at_seed_0(captured_config):
+    config = captured_config(["--config", str(TABLE3), "--cell", "autopilot"])
+    experiment = load_experiment(TABLE3)
+    assert config == experiment.config_for(experiment.cell("autopilot"), 0)
+    assert config.policy.name == "autopilot"
+
+
+def test_cli_runs_the_first_cell_by_default(captured_config):
+    config = captured_config(["--config", str(TABLE3)])
+    experiment = load_experiment(TABLE3)
+    assert config == experiment.config_for(experiment.cells[0], 0)
+
+
+@pytest.mark.parametrize("seed_args", [["--seed", "3"], ["--set", "scenario.seed=3"]])
+def test_cli_seed_picks_the_same_run_as_the_batch(captured_config, seed_args):
+    # The [vary] lighting drawn for seed 3 comes with it, so one run can be replayed alone.
+    config = captured_config(["--config", str(TABLE3), "--cell", "attacked sign, adjusted", *seed_args])
+    run = next(r for r in load_experiment(TABLE3).runs() if r.cell_name == "attacked sign, adjusted" and r.seed == 3)
+    assert config == run.config
+
+
+def test_cli_flags_and_set_apply_on_top_of_the_cell(captured_config):
+    config = captured_config(["--config", str(TABLE3), "--cell", "attacked sign, adjusted", "--seed", "3",
+                              "--perception", "oracle", "--town", "town03", "--set", "scenario.town=town10",
+                              "--set", "policy.brake_multiplier=0.7"])
+    assert (config.scenario.seed, config.perception.kind, config.scenario.town) == (3, "oracle", "town10")
+    assert config.scenario.sun_elevation_deg == load_experiment(TABLE3).runs()[3].config.scenario.sun_elevation_deg
+    assert (config.policy.name, config.policy.brake_multiplier, config.scenario.sign) == ("adjusted", 0.7, "lu_v2")
+
+
+BAD_CLI = {
+    "unknown_cell": (["--config", str(TABLE3), "--cell", "no such cell"], "no such cell"),
+    "missing_file": (["--config", "experiments/nope.toml"], "nope.toml"),
+    "cell_without_config": (["--cell", "autopilot"], "--config"),
+    "bad_set_on_top": (["--config", str(TABLE3), "--set", "policy.nme=x"], "policy.nme"),
+}
+
+
+@pytest.mark.parametrize("argv, mention", list(BAD_CLI.values()), ids=list(BAD_CLI))
+def test_cli_config_errors_exit_2_with_one_line(tmp_path, capsys, monkeypatch, argv, mention):
+    def _boom(self, *args, **kwargs):
+        raise AssertionError("the CLI started simulating before rejecting bad input")
+
+    monkeypatch.setattr(avsim.loop.ClosedLoop, "__init__", _boom)
+    out = tmp_path / "out.json"
+    code = cli.main(["run", *argv, "--json", str(out)])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert len(captured.err.splitlines()) == 1 and captured.err.startswith("avsim: error:")
+    assert mention in captured.err
+    assert not out.exists()
+
+
+def _write(tmp_path: Path, text: str, name: str = "exp.toml") -> Path:
+    path = tmp_path / name
+    path.write_text("\n".join(line.strip() for line in text.splitlines()) + "\n")
+    return path
