@@ -18,6 +18,7 @@ run: $(VENV)/.installed
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q
+	$(PY) -m pytest -q -m slow
 
 bench: $(VENV)/.installed
 	$(PY) -m avsim bench

@@ -109,6 +109,10 @@ class AdjustedBrakingPolicy(BrakingPolicy):
     a = v^2 / (2 d_stop), b = min(a / a_max * M, 1). When the sign leaves the view
     (it does at about 10 m), or is cut by the image border so that its box no
     longer spans the whole sign, the last estimate is carried forward by odometry.
+    A box that puts the sign farther away than odometry allows (the car only moves
+    towards it) is not believed: the estimate is the smaller of the two. A learned
+    detector's boxes of a near, partly hidden sign come out short, and believing
+    them releases the brake at the worst moment.
     """
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
@@ -117,10 +121,12 @@ class AdjustedBrakingPolicy(BrakingPolicy):
 
     def update_estimate(self, obs: Observation) -> float | None:
         det = self.top_stop_sign(obs, "front")
+        dead_reckoned = None if self._estimate_m is None else self._estimate_m - obs.speed_mps * self.context.control_dt_s
         if det is not None and not det.truncated:
-            self._estimate_m = self.pinhole_stop_line_dist_m(det)
-        elif self._estimate_m is not None:
-            self._estimate_m -= obs.speed_mps * self.context.control_dt_s
+            measured = self.pinhole_stop_line_dist_m(det)
+            self._estimate_m = measured if dead_reckoned is None else min(measured, dead_reckoned)
+        else:
+            self._estimate_m = dead_reckoned
         return self._estimate_m
 
     def decide(self, obs: Observation) -> BrakeDecision:
@@ -181,7 +187,7 @@ class AutopilotPolicy(BrakingPolicy):
         self._braking = False
 
     def decide(self, obs: Observation) -> BrakeDecision:
-        dist = obs.stop_line_dist_m - self.config.stop_margin_m
+        dist = obs.stop_line_dist_m - self.config.autopilot_stop_margin_m
         decel = required_decel_mps2(obs.speed_mps, dist)
         self._braking = self._braking or decel >= self.config.autopilot_decel_mps2
         if not self._braking:

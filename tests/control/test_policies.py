@@ -197,9 +197,9 @@ def test_autopilot_brakes_when_required_decel_reaches_threshold():
     cfg = PolicyConfig(name="autopilot")
     p = make("autopilot")
     v = 20.0
-    dist = v * v / (2 * cfg.autopilot_decel_mps2) + cfg.stop_margin_m - 0.1  # needs slightly more than 6 m/s^2
+    dist = v * v / (2 * cfg.autopilot_decel_mps2) + cfg.autopilot_stop_margin_m - 0.1  # needs slightly more than 6 m/s^2
     d = p.decide(obs(speed=v, stop_line=dist))
-    a = v * v / (2 * (dist - cfg.stop_margin_m))
+    a = v * v / (2 * (dist - cfg.autopilot_stop_margin_m))
     assert a >= cfg.autopilot_decel_mps2
     assert d.brake == pytest.approx(a / cfg.autopilot_full_brake_mps2)
     assert d.brake > 0.0

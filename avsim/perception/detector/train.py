@@ -87,7 +87,7 @@ def _check_resumable(meta: dict[str, Any], saved: dict[str, Any], path: Path) ->
                               f"rerun with the same settings, or without --resume to start afresh")
 
 
-def train(data_dir: str | Path, out_path: str | Path, epochs: int = 30, batch_size: int = 16, lr: float = 2e-3,
+def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_size: int = 16, lr: float = 2e-3,
           seed: int = 0, resume: bool = False, input_size: tuple[int, int] = DEPLOY_INPUT_SIZE, log_every: int = 50,
           device: str = "cpu", *, width_mult: float = 1.0, depth: int = 1, act: str = "leaky_relu",
           weight_decay: float = 0.05, warmup_steps: int | None = None, min_lr_ratio: float = 0.05,

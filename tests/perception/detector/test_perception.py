@@ -55,6 +55,7 @@ def test_missing_weights_say_how_to_train_them(tmp_path, capsys):
     assert code == 2 and "missing" in err and "avsim detector train" in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("policy", ["baseline", "adjusted", "side_camera"])
 @pytest.mark.parametrize("town,placement", CELLS)
 def test_detector_policies_stop_before_the_clean_sign(study_run, town, placement, policy):
@@ -63,6 +64,7 @@ def test_detector_policies_stop_before_the_clean_sign(study_run, town, placement
     assert result.peak_speed_mps * 3.6 == pytest.approx(85.0, abs=1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("town,placement", CELLS)
 def test_detector_baseline_stops_a_few_metres_before_the_sign_like_the_study(study_run, town, placement):
     # The study's clean-sign baseline stop was 4.3 m before the sign.
