@@ -18,7 +18,7 @@ class Chen(Attack):
     name = "chen"
     paper = "Chen et al. 2018, ShapeShifter"
 
-    def __init__(self, scene: Scene, *, eps: float = 0.16, similarity_weight: float = 2.0, steps: int = 250,
+    def __init__(self, scene: Scene, *, eps: float = 0.16, similarity_weight: float = 0.1, steps: int = 250,
                  views_per_step: int = 8, lr: float = 0.01, seed: int = 0) -> None:
         super().__init__(scene, steps=steps, views_per_step=views_per_step, lr=lr, seed=seed, eps=eps,
                          similarity_weight=similarity_weight)

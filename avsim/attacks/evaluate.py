@@ -49,7 +49,7 @@ class TextureReport:
 
     def mean_conf(self, camera: str = "front") -> float:
         values = [c for per_dist in self.conf_at_m[camera].values() for c in per_dist.values()]
-        return float(np.mean(values))
+        return float(np.nanmean(values))
 
 
 def _sign_confidence(loop: ClosedLoop, oracle, camera: str) -> tuple[float | None, float, float]:

@@ -5,7 +5,7 @@ Paper: J. Lu, H. Sibai, E. Fabry, "Adversarial Examples that Fool Detectors", ar
 Objective: minimise the mean, over a video-like sequence of views (one approach from 60 m
 to 10 m, as the car meets the sign), of the detector's stop-sign score
 (objectness x class probability, maximum over the sign's cells).
-Constraint: |delta| <= eps on the sign face (L-infinity), eps = 0.2 by default.
+Constraint: |delta| <= eps on the sign face (L-infinity), eps = 0.15 by default.
 How it differs from `lu_v3`: v2 spends a larger budget on the average frame; v3 spends a
 smaller, smoothed budget on the best-detected frame.
 """
@@ -21,7 +21,7 @@ class LuV2(Attack):
     name = "lu_v2"
     paper = "Lu, Sibai, Fabry 2017, Adversarial examples that fool detectors"
 
-    def __init__(self, scene: Scene, *, eps: float = 0.2, steps: int = 250, views_per_step: int = 8,
+    def __init__(self, scene: Scene, *, eps: float = 0.15, steps: int = 250, views_per_step: int = 8,
                  lr: float = 0.01, seed: int = 0) -> None:
         super().__init__(scene, steps=steps, views_per_step=views_per_step, lr=lr, seed=seed, eps=eps)
         self.eps = eps

@@ -6,8 +6,8 @@ Objective: minimise a soft maximum (log-sum-exp, temperature `temperature`) over
 video-like drive-by sequence of the detector's stop-sign score, so the frame that would
 trigger the brake first is the one pushed down; plus tv_weight * total variation, which
 keeps the perturbation smooth and inconspicuous.
-Constraint: |delta| <= eps on the sign face (L-infinity), eps = 0.15 by default.
-How it differs from `lu_v2`: a smaller budget (0.15 against 0.2), a worst-frame rather
+Constraint: |delta| <= eps on the sign face (L-infinity), eps = 0.12 by default.
+How it differs from `lu_v2`: a smaller budget (0.12 against 0.15), a worst-frame rather
 than mean-frame objective, and a smoothness term.
 """
 
@@ -23,7 +23,7 @@ class LuV3(Attack):
     name = "lu_v3"
     paper = "Lu, Sibai, Fabry 2017, Adversarial examples that fool detectors"
 
-    def __init__(self, scene: Scene, *, eps: float = 0.15, temperature: float = 0.05, tv_weight: float = 0.5,
+    def __init__(self, scene: Scene, *, eps: float = 0.12, temperature: float = 0.05, tv_weight: float = 0.05,
                  steps: int = 250, views_per_step: int = 8, lr: float = 0.01, seed: int = 0) -> None:
         super().__init__(scene, steps=steps, views_per_step=views_per_step, lr=lr, seed=seed, eps=eps,
                          temperature=temperature, tv_weight=tv_weight)

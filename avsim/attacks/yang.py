@@ -33,7 +33,7 @@ class Yang(Attack):
     name = "yang"
     paper = "Yang et al. 2020, targeted attention attack"
 
-    def __init__(self, scene: Scene, *, eps_peak: float = 0.3, gamma: float = 0.5, saliency_views: int = 32,
+    def __init__(self, scene: Scene, *, eps_peak: float = 0.27, gamma: float = 0.5, saliency_views: int = 32,
                  steps: int = 250, views_per_step: int = 8, lr: float = 0.01, seed: int = 0) -> None:
         super().__init__(scene, steps=steps, views_per_step=views_per_step, lr=lr, seed=seed, eps_peak=eps_peak,
                          gamma=gamma, saliency_views=saliency_views)

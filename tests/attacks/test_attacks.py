@@ -115,3 +115,23 @@ def test_wrong_shape_texture_exits_2(tmp_path, capsys):
     code = cli.main(["run", "--perception", "oracle", "--sign", str(path)])
     err = capsys.readouterr().err.splitlines()
     assert code == 2 and len(err) == 1 and "wide.png" in err[0]
+
+
+def test_the_strongest_shipped_attack_makes_baseline_run_past_the_sign_in_town07(study_run):
+    # yang delays the first detection from 39.6 m to about 35 m: too late for the
+    # baseline's constant 0.85 brake (a 38 m stop from 85 km/h).
+    clean = study_run("town07", "standard", "baseline", perception="detector")
+    attacked = study_run("town07", "standard", "baseline", perception="detector", sign="yang")
+    assert clean.sign_margin_m > 0
+    assert attacked.sign_margin_m < 0
+    assert attacked.first_detection_dist_m < clean.first_detection_dist_m
+
+
+@pytest.mark.slow
+def test_every_shipped_attack_lowers_the_mean_confidence_in_mujoco_renders():
+    from avsim.attacks.evaluate import evaluate_texture
+
+    clean = evaluate_texture("clean", "town07", ("standard",), threshold=0.5)
+    for method in SHIPPED_ATTACKS:
+        attacked = evaluate_texture(method, "town07", ("standard",), threshold=0.5)
+        assert attacked.mean_conf("front") < clean.mean_conf("front"), method
