@@ -9,19 +9,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import pytest  # noqa: E402
 
-from avsim.config import SimConfig, with_overrides  # noqa: E402
 from avsim.loop import run_config  # noqa: E402
 from avsim.metrics import RunResult  # noqa: E402
-
-
-def make_config(**sections) -> SimConfig:
-    """SimConfig with per-section overrides, e.g. make_config(scenario={"town": "town03"}).
-
-    Tests use the `oracle` perception unless they name another: physics and policy tests
-    must not depend on how well the learned detector happens to be trained.
-    """
-    sections = {**sections, "perception": {"kind": "oracle", **sections.get("perception", {})}}
-    return with_overrides(SimConfig(), sections)
+from helpers import make_config  # noqa: E402
 
 
 @functools.lru_cache(maxsize=None)

@@ -9,7 +9,7 @@ from avsim.control.policies import POLICIES
 from avsim.errors import PhysicsError
 from avsim.loop import ClosedLoop, run_config
 from avsim.world.towns import PLACEMENTS, TOWNS
-from conftest import make_config
+from helpers import make_config
 
 CELLS = [(town, placement) for town in TOWNS.names() for placement in PLACEMENTS.names()]
 PERCEIVING_POLICIES = ["baseline", "adjusted", "side_camera", "combined"]

@@ -26,6 +26,9 @@ class StopEvidence:
     score: torch.Tensor  # objectness x stop-sign class probability: what NMS thresholds
     objectness: torch.Tensor
     class_prob: torch.Tensor
+    # The stop-sign class logit (unbounded): a clean sign saturates the sigmoid, whose
+    # gradient then vanishes in float32, so a class-probability attack descends the logit.
+    class_logit: torch.Tensor
 
 
 def cells_near_boxes(centres_px: torch.Tensor, boxes_xyxy_px: torch.Tensor, margin_px: float) -> torch.Tensor:
@@ -49,7 +52,9 @@ def stop_evidence(outputs: list[torch.Tensor], strides: tuple[int, ...], sign_bo
     class_prob = torch.sigmoid(preds[..., 1 + STOP_CLASS_INDEX])
     floor = torch.zeros((), dtype=preds.dtype)
 
-    def masked_max(values: torch.Tensor) -> torch.Tensor:
-        return torch.where(near, values, floor).amax(dim=1)
+    def masked_max(values: torch.Tensor, empty: torch.Tensor = floor) -> torch.Tensor:
+        return torch.where(near, values, empty).amax(dim=1)
 
-    return StopEvidence(masked_max(objectness * class_prob), masked_max(objectness), masked_max(class_prob))
+    logit_floor = torch.full((), -20.0, dtype=preds.dtype)
+    return StopEvidence(masked_max(objectness * class_prob), masked_max(objectness), masked_max(class_prob),
+                        masked_max(preds[..., 1 + STOP_CLASS_INDEX], logit_floor))

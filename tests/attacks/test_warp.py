@@ -15,7 +15,7 @@ from avsim.attacks.warp import (UNIT_SQUARE_ST, composite, fit_gain_offset, homo
 from avsim.loop import ClosedLoop
 from avsim.world.signs import SIGN_SHAPES
 from avsim.world.textures import CLEAN_TEXTURE_FILES, TEXTURE_DIR, load_texture_png
-from conftest import make_config
+from helpers import make_config
 
 # Mean |composite - render| per channel inside the eroded face, on a 0..1 scale. The warp
 # measures about 0.3/255 at 20-30 m; misregistering it by half a pixel already costs

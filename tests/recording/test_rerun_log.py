@@ -13,7 +13,7 @@ from avsim.loop import ClosedLoop
 from avsim.recording import paths
 from avsim.recording.blueprint import SERIES_PANELS
 from avsim.recording.rerun_log import RunRecorder
-from conftest import make_config
+from helpers import make_config
 
 # A rerun API misuse is only a warning by default; here it fails the test.
 pytestmark = pytest.mark.filterwarnings("error::rerun.error_utils.RerunWarning")

@@ -14,7 +14,7 @@ from avsim.errors import PhysicsError
 from avsim.loop import ClosedLoop
 from avsim.perception.base import Detection
 from avsim.recording.video import VideoRecorder, annotate_frame
-from conftest import make_config
+from helpers import make_config
 
 WIDTH_PX, HEIGHT_PX = 640, 480  # the default camera
 # Close enough to the sign that the oracle sees it from the first step; the car stops in ~1.5 s.

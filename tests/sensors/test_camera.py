@@ -12,7 +12,7 @@ from avsim.loop import ClosedLoop
 from avsim.sensors import gl
 from avsim.sensors.camera import Intrinsics
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
-from conftest import make_config
+from helpers import make_config
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import pytest
 
 from avsim.loop import ClosedLoop
 from avsim.vehicle.physics import Controls
-from conftest import make_config
+from helpers import make_config
 
 V0_MPS = 85 / 3.6
 

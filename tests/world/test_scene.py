@@ -11,7 +11,7 @@ from avsim.world.road import APPROACH_LENGTH_M
 from avsim.world.scene import build_scene
 from avsim.world.textures import save_texture_png
 from avsim.world.towns import PLACEMENTS, TOWNS
-from conftest import make_config
+from helpers import make_config
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,12 @@
 import pytest
 
 from avsim import cli
-from avsim.config import PerceptionConfig, SimConfig
+from avsim.config import PerceptionConfig, SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.perception.detector.perception import SHIPPED_WEIGHTS
 from avsim.perception.factory import build_perception
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import PLACEMENTS, TOWNS
-from conftest import make_config
 
 CELLS = [(town, placement) for town in TOWNS.names() for placement in PLACEMENTS.names()]
 
@@ -21,7 +20,7 @@ def test_detector_is_the_default_perception_and_its_weights_are_shipped():
 
 @pytest.mark.parametrize("town", TOWNS.names())
 def test_clean_stop_sign_at_30_m_is_detected_within_3_px_of_the_segmentation_box(town):
-    loop = ClosedLoop(make_config(scenario={"town": town}, perception={"kind": "detector"}))
+    loop = ClosedLoop(with_overrides(SimConfig(), {"scenario": {"town": town}, "perception": {"kind": "detector"}}))
     try:
         loop.vehicle.place(loop.scene.stop_line_x_m - 30.0 - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
         oracle = build_perception(PerceptionConfig(kind="oracle"), loop.model, loop.scene)
