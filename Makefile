@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export MUJOCO_GL ?= egl
 
-.PHONY: run test bench clean
+.PHONY: run quick test bench clean
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -13,8 +13,13 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $@
 
+# The main job: every table and figure of the study, into results/<timestamp>/.
 run: $(VENV)/.installed
-	$(PY) -m avsim run --town town07 --placement standard --policy baseline --perception detector --speed-kmh 85 --seed 0 --json results/run.json
+	$(PY) -m avsim reproduce
+
+# A smoke check of the same: one seed per cell.
+quick: $(VENV)/.installed
+	$(PY) -m avsim reproduce --quick
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q

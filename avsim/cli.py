@@ -78,11 +78,8 @@ def _config_from_args(args: argparse.Namespace):
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    import contextlib
-    import time
-
-    from avsim.loop import ClosedLoop, run_config
     from avsim.metrics import write_json_atomic
+    from avsim.runner import run_recorded
     from avsim.summary import format_summary
 
     if args.config:
@@ -102,36 +99,32 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = _config_from_args(args)
-    if args.rrd or args.mp4:
-        # As run_config, with the recorders attached; each file appears only if the run completes.
-        start = time.perf_counter()
-        loop = ClosedLoop(config)
-        try:
-            with contextlib.ExitStack() as recorders:
-                hooks = []
-                if args.rrd:
-                    from avsim.recording.rerun_log import RunRecorder
-
-                    hooks.append(recorders.enter_context(RunRecorder(loop, args.rrd)).on_step)
-                if args.mp4:
-                    from avsim.recording.video import VideoRecorder
-
-                    hooks.append(recorders.enter_context(VideoRecorder(loop, args.mp4)).on_step)
-
-                def on_step(loop_: ClosedLoop, record) -> None:
-                    for hook in hooks:
-                        hook(loop_, record)
-
-                result = loop.run(on_step=on_step)
-        finally:
-            loop.close()
-        wall_s = time.perf_counter() - start
-    else:
-        result, wall_s = run_config(config)
+    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4)
+    result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
     if args.json:
         write_json_atomic(args.json, result.to_json_dict())
         print(f"  result written to {args.json}")
+    return 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from avsim.experiments.reproduce import reproduce
+
+    paths = [Path(p) for p in args.experiments] if args.experiments else None
+    out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress)
+    print((out / "report.md").read_text())
+    print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from avsim.experiments.sweep import load_sweep, run_sweep
+
+    sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
+    out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress)
+    print((out / "summary.md").read_text())
+    print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
     return 0
 
 
@@ -232,9 +225,13 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
     hyper = {k: v for k, v in (("steps", args.steps), ("views_per_step", args.views_per_step)) if v is not None}
     hyper.update(_parse_set(args.set))
     from avsim.attacks.generate import check_hyperparameters, prepare
+    from avsim.attacks.view_bank import ViewBankSpec
 
     check_hyperparameters(args.method, args.seed, hyper)
-    _, record = generate(args.method, args.out, seed=args.seed, setup=prepare(args.weights), hyperparameters=hyper)
+    # The spec checks the camera names, so a bad one fails before anything is rendered.
+    bank_spec = ViewBankSpec(cameras=tuple(c.strip() for c in args.cameras.split(",") if c.strip()))
+    _, record = generate(args.method, args.out, seed=args.seed, setup=prepare(args.weights, bank_spec),
+                         hyperparameters=hyper)
     print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
           f"and {Path(args.out).with_suffix('.json')}")
     return 0
@@ -290,6 +287,9 @@ def _add_attack_commands(sub) -> None:
     gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
     gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
+    gen.add_argument("--cameras", default="front",
+                     help="comma-separated cameras whose views the texture is optimised over: front, side "
+                          "(default front; front,side is the adaptive attacker against the side-camera defence)")
     gen.set_defaults(func=_cmd_attack_generate)
     ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
     ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
@@ -321,6 +321,25 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", help="experiment file (experiments/*.toml): run one of its cells; the flags above apply on top")
     run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell)")
     run.set_defaults(func=_cmd_run)
+
+    rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
+    rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
+    rep.add_argument("--workers", type=int, help="runs at once in worker processes (default: one per core)")
+    rep.add_argument("--out", default="results", help="folder in which the timestamped results folder is made")
+    rep.add_argument("--experiments", nargs="+", metavar="FILE",
+                     help="experiment files to run instead of the study's (experiments/*.toml)")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.set_defaults(func=_cmd_reproduce)
+
+    swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
+                                       "and safety_map.png")
+    swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
+    swp.add_argument("--out", required=True, help="results folder")
+    swp.add_argument("--workers", type=int, help="runs at once in worker processes (default: one per core)")
+    swp.add_argument("--resume", action="store_true",
+                     help="keep the ok runs already in OUT/results.jsonl and run only the others")
+    swp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    swp.set_defaults(func=_cmd_sweep)
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     _add_scenario_flags(snap)

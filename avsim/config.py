@@ -167,8 +167,19 @@ class PerceptionConfig:
     # conf_threshold decides braking; lower-scored boxes are kept in the records
     # so a run shows what an attack left of the sign.
     min_confidence: float = 0.1
+    # Torch intra-op threads for the detector. Part of the config because oneDNN splits a
+    # convolution's sums by thread, so 1 and 2 threads differ in the last bits of a score:
+    # a run is bit-identical only at the same count. One thread also lets a pool of
+    # worker processes use every core without oversubscribing them.
+    threads: int = 1
+    # Gaussian read noise added to every frame the detector sees [8-bit levels, 1 sigma]; the
+    # pattern is drawn from scenario.seed, so seeds differ in their noise. The oracle reads
+    # segmentation and has none.
+    sensor_noise_std: float = 0.0
 
     def __post_init__(self) -> None:
+        _require(0 <= self.sensor_noise_std <= 50, f"perception.sensor_noise_std must be in [0, 50] levels, got {self.sensor_noise_std}")
+        _require(1 <= self.threads <= 64, f"perception.threads must be in [1, 64], got {self.threads}")
         _require(self.min_box_height_px >= 1, f"perception.min_box_height_px must be >= 1, got {self.min_box_height_px}")
         _require(0 < self.min_confidence < 1, f"perception.min_confidence must be in (0, 1), got {self.min_confidence}")
 

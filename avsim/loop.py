@@ -47,7 +47,7 @@ class ClosedLoop:
         self.data = mujoco.MjData(self.model)
         self.vehicle = Vehicle(self.model, self.data, config.vehicle)
         self.rig = CameraRig(self.model, config.camera, fog=config.scenario.fog_end_m > 0)
-        self.perception = build_perception(config.perception, self.model, self.scene)
+        self.perception = build_perception(config.perception, self.model, self.scene, config.scenario.seed)
         cam_x_m = float(self.model.cam_pos[self.model.camera("car/front").id][0])
         context = PolicyContext(
             front_f_px=self.rig.intrinsics("front").f_px,

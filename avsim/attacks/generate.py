@@ -82,7 +82,8 @@ class AttackSetup:
 
 
 def prepare(weights_path: str = "", bank_spec: ViewBankSpec = ViewBankSpec()) -> AttackSetup:
-    """Load the detector and render the view bank (about 40 s for the default bank)."""
+    """Load the detector and render the view bank (about 40 s for the default front-camera
+    bank; each further camera adds about as much again)."""
     detector, _ = load_detector(weights_path)
     clean_full_rgb = clean_stop_texture()
     clean_small = downsample(clean_full_rgb)
@@ -121,6 +122,7 @@ def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: A
     clean_full = texture_tensor(setup.clean_full_rgb)
     rgb = tensor_to_rgb(apply_change(clean_full, setup.clean_small, result.texture))
     saved = texture_tensor(rgb)  # measure what is on disk, after 8-bit rounding
+    bank = setup.scene.bank
     face = (face_alpha(SIGN_SHAPES["stop_sign"], *clean_full.shape[-2:]) > 0.5).float()
     record = {
         **result.to_json_dict(),
@@ -130,7 +132,9 @@ def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: A
         "paper": attack_class.paper,
         "detector_weights": setup.weights_path.name,
         "detector_weights_sha256": hashlib.sha256(setup.weights_path.read_bytes()).hexdigest(),
-        "view_bank": {**asdict(setup.bank_spec), "views": len(setup.scene.bank)},
+        # The spec carries the cameras; the counts show each camera's views really made the bank.
+        "view_bank": {**asdict(setup.bank_spec), "views": len(bank),
+                      "views_by_camera": {camera: bank.camera.count(camera) for camera in setup.bank_spec.cameras}},
         "seconds": round(time.perf_counter() - started, 1),
     }
     out_png = Path(out_png)

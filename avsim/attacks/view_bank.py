@@ -21,7 +21,9 @@ import torch
 from avsim.attacks.sign_view import corners_px, face_alpha, face_hidden, sign_view
 from avsim.attacks.warp import fit_gain_offset, warp_texture
 from avsim.config import SimConfig, with_overrides
+from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
+from avsim.sensors.camera import CAMERA_NAMES
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import PLACEMENTS, TOWNS
 
@@ -30,7 +32,13 @@ CROP_PX = 256  # a multiple of the detector's largest stride (32)
 
 @dataclass(frozen=True)
 class ViewBankSpec:
-    """What the bank samples. Distances are camera-independent: front bumper to the sign [m]."""
+    """What the bank samples. Distances are camera-independent: front bumper to the sign [m].
+
+    cameras: the car cameras whose views go into the bank, each seeing the same drive-by
+    distances. ("front", "side") is the adaptive attacker's bank: the side camera (yawed
+    towards the roadside) keeps the whole stop sign in frame from 10 m to beyond 60 m, so
+    the default range gives it about as many views as the front camera.
+    """
 
     towns: tuple[str, ...] = ("town03", "town07", "town10")
     placements: tuple[str, ...] = ("near", "standard", "far")
@@ -42,6 +50,13 @@ class ViewBankSpec:
     yaw_jitter_deg: float = 2.0  # car heading, so the sign is seen slightly off-axis
     fog_probability: float = 0.3
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        # Checked here, before any rendering, so a misspelt camera costs nothing.
+        unknown = [c for c in self.cameras if c not in CAMERA_NAMES]
+        if not self.cameras or unknown or len(set(self.cameras)) != len(self.cameras):
+            raise ConfigError(f"view bank cameras must be distinct names from {', '.join(CAMERA_NAMES)}; "
+                              f"got {','.join(self.cameras) or 'none'}")
 
 
 @dataclass

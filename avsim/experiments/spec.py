@@ -19,11 +19,11 @@ are the exception: the scene resolves them when it is built, so a file may name 
 texture that an attack run has not written yet.
 
 What differs between the runs of one cell: `scenario.seed`, which seeds the start
-jitter (up to `scenario.start_jitter_m` along the road), and the keys in `[vary]`,
-drawn from a generator seeded by the run's seed alone, so seed k has the same lighting
-in every cell and cells compare in pairs. The simulator has no sensor-noise
-model, so "sensor noise" cannot be varied; lighting can (`scenario.sun_*`). Because
-`runs()` sets the seed, a file may not set `scenario.seed` itself.
+jitter (up to `scenario.start_jitter_m` along the road) and the camera's sensor noise
+(`perception.sensor_noise_std` sets its level), and the keys in `[vary]`, drawn from a
+generator seeded by the run's seed alone, so seed k has the same lighting in every cell
+and cells compare in pairs. Because `runs()` sets the seed, a file may not set
+`scenario.seed` itself.
 
 Every error is a one-line `ConfigError` that names the file, where in it (for example
 `cells[2] "attacked sign, adjusted"`) and the key.

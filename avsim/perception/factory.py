@@ -12,20 +12,24 @@ from avsim.perception.oracle import OraclePerception
 from avsim.registry import Registry
 from avsim.world.scene import SceneInfo
 
-PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo], Perception]
+# (config, model, scene, seed) -> Perception; the seed is the run's scenario.seed (sensor noise).
+PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int], Perception]
 PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
-PERCEPTIONS.add("oracle", lambda cfg, model, scene: OraclePerception(model, scene.signs, cfg.min_box_height_px))
+PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed: OraclePerception(model, scene.signs, cfg.min_box_height_px))
 
 
-def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo) -> Perception:
+def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
     # Imported here so oracle-only runs never import the network code.
     from avsim.perception.detector.perception import DetectorPerception
+    from avsim.sensors.noise import SensorNoise
 
-    return DetectorPerception(config.weights_path, config.min_confidence, config.min_box_height_px)
+    return DetectorPerception(config.weights_path, config.min_confidence, config.min_box_height_px, config.threads,
+                              SensorNoise(config.sensor_noise_std, seed))
 
 
 PERCEPTIONS.add("detector", _detector)
 
 
-def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo) -> Perception:
-    return PERCEPTIONS.get(config.kind)(config, model, scene)
+def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0) -> Perception:
+    """The configured perception; `seed` (the run's scenario.seed) seeds its sensor noise."""
+    return PERCEPTIONS.get(config.kind)(config, model, scene, seed)

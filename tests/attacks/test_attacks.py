@@ -75,7 +75,8 @@ def test_same_seed_same_texture(small_scene, clean_small):
     assert torch.equal(first, second)
 
 
-@pytest.mark.parametrize("method", SHIPPED_ATTACKS)
+# Every attacked texture in textures/, the adaptive (front + side camera) one included.
+@pytest.mark.parametrize("method", [*SHIPPED_ATTACKS, "adaptive"])
 def test_shipped_textures_keep_their_budget(method):
     png, record_path = TEXTURE_DIR / f"{method}.png", TEXTURE_DIR / f"{method}.json"
     record = json.loads(record_path.read_text())

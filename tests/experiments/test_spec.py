@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 import avsim.loop
+import avsim.runner
 from avsim import cli
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
@@ -18,11 +19,13 @@ DEFENDED_CELLS = [("town07", "standard"), ("town03", "far"), ("town03", "near"),
 
 # file name -> (sign, policy) of each cell, in order
 SHIPPED = {
-    "table3_stop_positions.toml": [("clean", "baseline"), ("lu_v2", "baseline"), ("lu_v2", "adjusted"),
-                                   ("lu_v2", "side_camera"), ("clean", "autopilot")],
+    "table3_stop_positions.toml": [("clean", "baseline"), ("yang", "baseline"), ("yang", "adjusted"),
+                                   ("yang", "side_camera"), ("clean", "autopilot")],
     "table1_clean_defended.toml": [("clean", "combined")] * 5,
-    "table2_attacked_defended.toml": [("lu_v2", "combined")] * 5,
+    "table2_attacked_defended.toml": [("yang", "combined")] * 5,
     "fig3_detection.toml": [(sign, "baseline") for sign in ("clean", "chen", "eykholt", "lu_v2", "lu_v3", "yang")],
+    "adaptive_attacker.toml": [("adaptive", "baseline"), ("adaptive", "side_camera"), ("adaptive", "adjusted"),
+                               ("adaptive", "combined"), ("yang", "side_camera")],
 }
 
 
@@ -167,14 +170,14 @@ def captured_config(monkeypatch):
     class _Stop(Exception):
         pass
 
-    def _run_config(config):
+    def _run_recorded(config, **recorders):
         captured.append(config)
         raise _Stop
 
     def _boom(self, *args, **kwargs):
         raise AssertionError("the CLI built a ClosedLoop; this test must not simulate")
 
-    monkeypatch.setattr(avsim.loop, "run_config", _run_config)
+    monkeypatch.setattr(avsim.runner, "run_recorded", _run_recorded)
     monkeypatch.setattr(avsim.loop.ClosedLoop, "__init__", _boom)
 
     def resolve(argv: list[str]) -> SimConfig:
@@ -212,7 +215,7 @@ def test_cli_flags_and_set_apply_on_top_of_the_cell(captured_config):
                               "--set", "policy.brake_multiplier=0.7"])
     assert (config.scenario.seed, config.perception.kind, config.scenario.town) == (3, "oracle", "town10")
     assert config.scenario.sun_elevation_deg == load_experiment(TABLE3).runs()[3].config.scenario.sun_elevation_deg
-    assert (config.policy.name, config.policy.brake_multiplier, config.scenario.sign) == ("adjusted", 0.7, "lu_v2")
+    assert (config.policy.name, config.policy.brake_multiplier, config.scenario.sign) == ("adjusted", 0.7, "yang")
 
 
 BAD_CLI = {

@@ -1,0 +1,146 @@
+"""Run many closed-loop configs in worker processes; each finished run is one JSON record.
+
+    specs = [RunSpec("table3_stop_positions", run.cell_name, run.seed, run.config) for run in experiment.runs()]
+    records = run_batch(specs, workers=2, on_record=writer.append)
+
+Every run is `avsim.runner.run_recorded`, exactly what `avsim run` executes, so one record
+can be re-run alone with `avsim run --config FILE --cell NAME --seed K`. Workers are fresh
+`spawn`ed processes: each builds its own MuJoCo model and EGL context (an OpenGL context
+must never cross a fork). A run that raises becomes a `failed` record carrying the error,
+and the batch goes on.
+
+A record (`RunRecord.to_json_dict`, one line of `runs.jsonl`):
+    experiment, cell, seed    where the run comes from
+    spec_hash                 sha256 of the run's resolved config (the same config, the same hash)
+    status                    "ok" or "failed"; error: "ExceptionType: message" when failed
+    result                    the `RunResult` JSON of `avsim run --json` (config included), or null
+    trace                     per control step: sign_dist_m [m, bumper to sign], speed_mps,
+                              brake [0..1], and per camera the policy rendered, <camera>_conf:
+                              its best stop-sign confidence (0 when it reported none)
+    rrd                       path of the run's rerun recording, relative to the batch folder
+    wall_s                    wall-clock time of the run [s]
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import os
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from avsim.config import SimConfig
+from avsim.control.policies import STOP_CLASS
+from avsim.metrics import StepRecord
+
+# Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
+_TRACE_DECIMALS = 4
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a batch: where it comes from, its config, and where its recording goes.
+
+    rrd_path: absolute path of the `.rrd` to write, or None for no recording.
+    """
+
+    experiment: str
+    cell: str
+    seed: int
+    config: SimConfig
+    rrd_path: str | None = None
+
+    @property
+    def spec_hash(self) -> str:
+        return config_hash(self.config)
+
+
+def config_hash(config: SimConfig) -> str:
+    """sha256 of the config's canonical JSON: identical configs give identical hashes."""
+    canonical = json.dumps(config.to_dict(), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def trace_of(records: Sequence[StepRecord], cameras: Iterable[str]) -> dict[str, list[float]]:
+    """The per-step series a report plots (see the module docstring for the keys)."""
+    trace: dict[str, list[float]] = {
+        "sign_dist_m": [round(r.sign_dist_m, _TRACE_DECIMALS) for r in records],
+        "speed_mps": [round(r.speed_mps, _TRACE_DECIMALS) for r in records],
+        "brake": [round(r.brake, _TRACE_DECIMALS) for r in records],
+    }
+    for camera in cameras:
+        trace[f"{camera}_conf"] = [
+            round(max((d.confidence for d in r.detections if d.camera == camera and d.class_name == STOP_CLASS),
+                      default=0.0), _TRACE_DECIMALS)
+            for r in records]
+    return trace
+
+
+def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
+    """Run one spec and return its record (a failure is a record too). Runs in a worker process.
+
+    root: the batch folder; the record's `rrd` path is written relative to it.
+    """
+    # Imported here: workers are spawned, and the policy registry pulls in the whole loop.
+    from avsim.control.policies import POLICIES
+    from avsim.runner import run_recorded
+
+    record: dict[str, Any] = {"experiment": spec.experiment, "cell": spec.cell, "seed": spec.seed,
+                              "spec_hash": spec.spec_hash, "status": "ok", "error": None, "result": None,
+                              "trace": None, "rrd": None, "wall_s": None}
+    try:
+        output = run_recorded(spec.config, rrd_path=spec.rrd_path)
+    except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
+        last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+        where = f" (at {Path(last.filename).name}:{last.lineno})" if last else ""
+        record.update(status="failed", error=f"{type(exc).__name__}: {exc}{where}")
+        return record
+    # The policy classes declare the cameras they render; the trace has a series for each.
+    cameras = POLICIES.get(spec.config.policy.name).cameras
+    record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),
+                  wall_s=round(output.wall_s, 3))
+    if spec.rrd_path:
+        record["rrd"] = os.path.relpath(spec.rrd_path, root) if root else spec.rrd_path
+    return record
+
+
+def run_batch(specs: Sequence[RunSpec], *, workers: int = 1, root: str | os.PathLike | None = None,
+              on_record: Callable[[dict[str, Any]], None] | None = None, progress: bool = True,
+              description: str = "runs") -> list[dict[str, Any]]:
+    """Run every spec; returns their records in the order of `specs`.
+
+    workers: processes running at once; 1 runs in this process. on_record is called in this
+    process as each run finishes (in finishing order), e.g. to append it to a results file.
+    """
+    from tqdm import tqdm
+
+    root_str = str(root) if root is not None else None
+    records: list[dict[str, Any] | None] = [None] * len(specs)
+    bar = tqdm(total=len(specs), desc=description, unit="run", disable=not progress, dynamic_ncols=True)
+
+    def finished(index: int, record: dict[str, Any]) -> None:
+        records[index] = record
+        if on_record is not None:
+            on_record(record)
+        failures = sum(1 for r in records if r is not None and r["status"] == "failed")
+        bar.set_postfix(failed=failures, refresh=False)
+        bar.update(1)
+
+    try:
+        if workers <= 1:
+            for index, spec in enumerate(specs):
+                finished(index, execute(spec, root_str))
+        else:
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+                futures = {pool.submit(execute, spec, root_str): index for index, spec in enumerate(specs)}
+                for future in as_completed(futures):
+                    finished(futures[future], future.result())
+    finally:
+        bar.close()
+    return [r for r in records if r is not None]

@@ -1,0 +1,127 @@
+"""`avsim reproduce`: every table and figure of the study, run, recorded and reported.
+
+    out = reproduce("results", quick=False, workers=2)
+
+writes `results/<timestamp>/`:
+    runs.jsonl            one record per run (see `avsim.experiments.batch`), sorted by
+                          experiment, cell and seed once the batch is over
+    rrd/<experiment>/     one rerun recording per run (`rerun FILE.rrd` opens it)
+    experiments/          the experiment files as they were run
+    manifest.json         command, versions, workers, wall time, failures
+    report.md, *.png      the study's tables beside ours, and the figures
+
+Every experiment file is loaded and checked before anything is written, so a bad file
+fails in one line with no half-made results folder.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import os
+import platform
+import shutil
+import time
+from pathlib import Path
+
+from avsim.errors import ConfigError
+from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.results_file import JsonlWriter, rewrite
+from avsim.experiments.spec import Experiment, load_experiment
+from avsim.metrics import write_json_atomic
+
+EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
+# The study's tables and figure, then what avsim adds beyond the study; report order.
+STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_attacked_defended",
+                     "fig3_detection", "adaptive_attacker")
+
+
+def default_workers() -> int:
+    """One worker per core: each run is single-threaded (see `PerceptionConfig.threads`)."""
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
+def load_study(experiment_paths: list[Path] | None = None, quick: bool = False) -> list[Experiment]:
+    """The experiments to run; `quick` keeps one seed per cell."""
+    paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in STUDY_EXPERIMENTS]
+    experiments = [load_experiment(path) for path in paths]
+    stems = [e.path.stem for e in experiments]
+    if len(set(stems)) != len(stems):
+        raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
+    return [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
+
+
+def specs_for(experiments: list[Experiment], out_dir: Path) -> list[RunSpec]:
+    """Every (experiment, cell, seed) as a spec, each recorded to its own .rrd under `out_dir/rrd/`."""
+    specs = []
+    for experiment in experiments:
+        for run in experiment.runs():
+            rrd = out_dir / "rrd" / experiment.path.stem / f"{slug(run.cell_name)}__seed{run.seed}.rrd"
+            specs.append(RunSpec(experiment.path.stem, run.cell_name, run.seed, run.config, str(rrd)))
+    return specs
+
+
+def slug(name: str) -> str:
+    """A cell name as a file name: "attacked sign, adjusted" -> "attacked_sign_adjusted"."""
+    return "_".join("".join(c if c.isalnum() else " " for c in name.lower()).split())
+
+
+def _fresh_dir(root: Path, stamp: str) -> Path:
+    out = root / stamp
+    suffix = 1
+    while out.exists():
+        suffix += 1
+        out = root / f"{stamp}_{suffix}"
+    out.mkdir(parents=True)
+    return out
+
+
+def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
+              experiment_paths: list[Path] | None = None, progress: bool = True) -> Path:
+    """Run the study's experiments; returns the results folder (see the module docstring)."""
+    from avsim.experiments.report import write_report
+
+    experiments = load_study(experiment_paths, quick)
+    workers = workers or default_workers()
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    started = time.perf_counter()
+    started_at = dt.datetime.now().astimezone()
+    out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
+    for experiment in experiments:
+        shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
+    specs = specs_for(experiments, out)
+    records = run_batch(specs, workers=workers, root=out, on_record=JsonlWriter(out / "runs.jsonl").append,
+                        progress=progress, description="reproduce")
+    # Finishing order depends on the workers; the file ends in spec order, the same every time.
+    rewrite(out / "runs.jsonl", records)
+    wall_s = time.perf_counter() - started
+    failures = [r for r in records if r["status"] == "failed"]
+    manifest = {
+        "command": "avsim reproduce" + (" --quick" if quick else ""),
+        "started_at": started_at.isoformat(timespec="seconds"),
+        "wall_s": round(wall_s, 1),
+        "workers": workers,
+        "runs": len(records),
+        "failed": len(failures),
+        "experiments": {e.path.stem: {"title": e.title, "seeds": e.seeds, "cells": [c.name for c in e.cells]}
+                        for e in experiments},
+        "versions": _versions(),
+    }
+    write_json_atomic(out / "manifest.json", manifest)
+    write_report(out, experiments, records, manifest)
+    return out
+
+
+def _mkdir(path: Path) -> Path:
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _versions() -> dict[str, str]:
+    import mujoco
+    import numpy
+    import torch
+
+    return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
+            "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores"}

@@ -1,0 +1,57 @@
+"""One closed-loop run with its optional recorders: what `avsim run` and every batch execute.
+
+    output = run_recorded(config, rrd_path="run.rrd", mp4_path=None)
+    output.result        # RunResult, as written by `avsim run --json`
+    output.records       # one StepRecord per control step (state at sensing time)
+
+Recording never changes the run: the recorders only read the loop after each step. Each
+file appears only when the run completes (the recorders write to a temporary name and
+rename on close), so an interrupted run leaves no half-written `.rrd` or `.mp4`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from dataclasses import dataclass
+
+from avsim.config import SimConfig
+from avsim.loop import ClosedLoop
+from avsim.metrics import RunResult, StepRecord
+
+
+@dataclass(frozen=True)
+class RunOutput:
+    """A finished run: its result, its per-step records and the wall-clock time it took [s]."""
+
+    result: RunResult
+    records: tuple[StepRecord, ...]
+    wall_s: float
+
+
+def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None,
+                 mp4_path: str | os.PathLike | None = None) -> RunOutput:
+    """Run `config` to the end, recording it to `rrd_path` (rerun) and `mp4_path` (video) if given."""
+    start = time.perf_counter()
+    loop = ClosedLoop(config)
+    try:
+        with contextlib.ExitStack() as recorders:
+            hooks = []
+            if rrd_path:
+                from avsim.recording.rerun_log import RunRecorder
+
+                hooks.append(recorders.enter_context(RunRecorder(loop, rrd_path)).on_step)
+            if mp4_path:
+                from avsim.recording.video import VideoRecorder
+
+                hooks.append(recorders.enter_context(VideoRecorder(loop, mp4_path)).on_step)
+
+            def on_step(loop_: ClosedLoop, record: StepRecord) -> None:
+                for hook in hooks:
+                    hook(loop_, record)
+
+            result = loop.run(on_step=on_step if hooks else None)
+    finally:
+        loop.close()
+    return RunOutput(result, tuple(loop.records), time.perf_counter() - start)

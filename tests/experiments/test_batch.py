@@ -1,0 +1,57 @@
+"""Batches of runs: records, traces, failure isolation, and the same results in worker processes."""
+
+import pytest
+
+from avsim.experiments.batch import RunSpec, config_hash, execute, run_batch
+from avsim.loop import run_config
+from helpers import make_config
+
+# Short oracle runs: the sign is in range within a second, the car stops in a few.
+SHORT = {"speed_kmh": 40.0, "start_speed_kmh": 40.0, "start_dist_m": 50.0}
+
+
+def _spec(cell: str, seed: int = 0, **sections) -> RunSpec:
+    sections.setdefault("scenario", {})
+    sections["scenario"] = {**SHORT, "seed": seed, **sections["scenario"]}
+    return RunSpec("short", cell, seed, make_config(**sections))
+
+
+def test_config_hash_is_stable_and_tells_configs_apart():
+    assert config_hash(make_config()) == config_hash(make_config())
+    assert config_hash(make_config()) != config_hash(make_config(scenario={"seed": 1}))
+
+
+def test_a_record_holds_the_result_and_a_trace_per_camera_the_policy_renders():
+    record = execute(_spec("side", policy={"name": "side_camera"}))
+    assert record["status"] == "ok" and record["error"] is None
+    direct, _ = run_config(_spec("side", policy={"name": "side_camera"}).config)
+    assert record["result"] == direct.to_json_dict()
+    trace = record["trace"]
+    assert set(trace) == {"sign_dist_m", "speed_mps", "brake", "front_conf", "side_conf"}
+    assert len({len(series) for series in trace.values()}) == 1
+    assert trace["sign_dist_m"][0] == pytest.approx(SHORT["start_dist_m"] + 1.0, abs=2.5)  # jitter; sign 1 m past the line
+    assert max(trace["front_conf"]) == 1.0  # the oracle is certain
+    assert trace["brake"][-1] > 0
+
+
+def test_the_autopilot_trace_has_no_camera_series():
+    record = execute(_spec("auto", policy={"name": "autopilot"}))
+    assert set(record["trace"]) == {"sign_dist_m", "speed_mps", "brake"}
+
+
+def test_a_run_that_raises_is_a_failed_record_and_the_batch_goes_on(tmp_path):
+    specs = [_spec("bad", scenario={"sign": str(tmp_path / "missing.png")}), _spec("good")]
+    seen = []
+    records = run_batch(specs, workers=1, on_record=seen.append, progress=False)
+    assert [r["status"] for r in records] == ["failed", "ok"]
+    assert "missing.png" in records[0]["error"] and records[0]["result"] is None
+    assert len(seen) == 2
+
+
+def test_worker_processes_give_the_records_of_one_process():
+    specs = [_spec("baseline", seed, policy={"name": "baseline"}) for seed in (0, 1)]
+    in_process = run_batch(specs, workers=1, progress=False)
+    pooled = run_batch(specs, workers=2, progress=False)
+    strip = lambda records: [{k: v for k, v in r.items() if k != "wall_s"} for r in records]  # noqa: E731
+    assert strip(pooled) == strip(in_process)
+    assert in_process[0]["result"] != in_process[1]["result"]  # the seeds really differ

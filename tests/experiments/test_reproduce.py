@@ -1,0 +1,88 @@
+"""`avsim reproduce` on a tiny, fast stand-in for the study's Table III (oracle perception, short runs)."""
+
+import json
+
+import pytest
+
+from avsim import cli
+from avsim.experiments.reproduce import load_study, reproduce, slug
+from avsim.experiments.results_file import read_records
+
+# The study's Table III cell names, so the report sets them beside the study's figures.
+TINY_TABLE3 = """
+title = "Table III stand-in"
+seeds = 2
+[defaults]
+scenario = { town = "town07", placement = "standard", speed_kmh = 40, start_speed_kmh = 40, start_dist_m = 50 }
+perception = { kind = "oracle" }
+[[cells]]
+name = "clean sign, baseline"
+policy = { name = "baseline" }
+[[cells]]
+name = "attacked sign, side_camera"
+policy = { name = "side_camera" }
+[[cells]]
+name = "autopilot"
+policy = { name = "autopilot" }
+"""
+TINY_FIG3 = """
+title = "Fig. 3 stand-in"
+seeds = 1
+[defaults]
+scenario = { town = "town07", placement = "standard", speed_kmh = 40, start_speed_kmh = 40, start_dist_m = 50 }
+perception = { kind = "oracle" }
+[[cells]]
+name = "clean"
+policy = { name = "baseline" }
+"""
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    root = tmp_path_factory.mktemp("reproduce")
+    (root / "table3_stop_positions.toml").write_text(TINY_TABLE3)
+    (root / "fig3_detection.toml").write_text(TINY_FIG3)
+    paths = [root / "table3_stop_positions.toml", root / "fig3_detection.toml"]
+    return reproduce(root / "results", workers=1, experiment_paths=paths, progress=False)
+
+
+def test_every_run_has_a_record_in_spec_order_and_its_own_recording(results):
+    records = read_records(results / "runs.jsonl")
+    assert [(r["cell"], r["seed"]) for r in records] == [
+        (cell, seed) for cell in ("clean sign, baseline", "attacked sign, side_camera", "autopilot") for seed in (0, 1)
+    ] + [("clean", 0)]
+    assert all(r["status"] == "ok" for r in records)
+    for r in records:
+        assert (results / r["rrd"]).is_file()
+        assert r["rrd"] == f"rrd/{r['experiment']}/{slug(r['cell'])}__seed{r['seed']}.rrd"
+
+
+def test_manifest_and_a_copy_of_the_experiment_file(results):
+    manifest = json.loads((results / "manifest.json").read_text())
+    assert manifest["runs"] == 7 and manifest["failed"] == 0 and manifest["workers"] == 1
+    assert (results / "experiments" / "table3_stop_positions.toml").read_text() == TINY_TABLE3
+
+
+def test_report_sets_the_study_beside_ours_and_links_the_figures(results):
+    report = (results / "report.md").read_text()
+    assert "| clean sign, baseline | 2/2 |" in report
+    assert "+4.3" in report and "-10.3" in report  # the study's Table III column
+    assert "| clean | 1.00 |" in report  # Fig. 3: the oracle's confidence, every frame in range
+    for figure in ("speed_vs_distance.png", "stop_positions.png", "confidence_vs_distance.png"):
+        assert (results / figure).stat().st_size > 10_000
+        assert f"]({figure})" in report
+
+
+def test_quick_keeps_one_seed_per_cell(tmp_path):
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3)
+    assert [e.seeds for e in load_study([experiment], quick=True)] == [1]
+
+
+def test_a_bad_experiment_file_fails_in_one_line_before_anything_is_written(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY_TABLE3.replace('town = "town07"', 'town = "town99"'))
+    code = cli.main(["reproduce", "--experiments", str(bad), "--out", str(tmp_path / "results")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and "town99" in err
+    assert not (tmp_path / "results").exists()
