@@ -108,30 +108,39 @@ class Experiment:
         return with_overrides(cell.config, overrides)
 
 
-def load_experiment(path: str | os.PathLike) -> Experiment:
-    """Read and check an experiment file; see the module docstring for its format."""
-    path = Path(path)
+def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], default_seeds: int) -> tuple[dict[str, Any], str, int]:
+    """Read a TOML file of runs (an experiment or a sweep): (the raw table, its title, its seeds).
+
+    kind names the file in errors ("experiment", "sweep"); unknown top-level keys, a title that
+    is not a string and seeds that are not an integer >= 1 are one-line ConfigErrors.
+    """
     try:
         with path.open("rb") as handle:
             raw = tomllib.load(handle)
     except FileNotFoundError:
-        raise ConfigError(f"{path}: experiment file not found") from None
+        raise ConfigError(f"{path}: {kind} file not found") from None
     except tomllib.TOMLDecodeError as exc:
         # tomllib's message names the line and column: "... (at line 3, column 7)".
         raise ConfigError(f"{path}: malformed TOML: {exc}") from None
     except OSError as exc:
-        raise ConfigError(f"{path}: cannot read experiment file ({exc.strerror})") from None
+        raise ConfigError(f"{path}: cannot read {kind} file ({exc.strerror})") from None
 
-    unknown = sorted(set(raw) - set(TOP_LEVEL_KEYS))
+    unknown = sorted(set(raw) - set(top_level_keys))
     if unknown:
-        raise ConfigError(f"{path}: unknown top-level key '{unknown[0]}'; valid keys: {', '.join(TOP_LEVEL_KEYS)}")
+        raise ConfigError(f"{path}: unknown top-level key '{unknown[0]}'; valid keys: {', '.join(top_level_keys)}")
     title = raw.get("title", path.stem)
     if not isinstance(title, str):
         raise ConfigError(f"{path}: 'title' must be a string, got {title!r}")
-    seeds = raw.get("seeds", DEFAULT_SEEDS)
+    seeds = raw.get("seeds", default_seeds)
     if type(seeds) is not int or seeds < 1:
         raise ConfigError(f"{path}: 'seeds' must be an integer >= 1, got {seeds!r}")
+    return raw, title, seeds
 
+
+def load_experiment(path: str | os.PathLike) -> Experiment:
+    """Read and check an experiment file; see the module docstring for its format."""
+    path = Path(path)
+    raw, title, seeds = read_run_file(path, "experiment", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
     with _located(path, "[defaults]"):
         defaults = _table(raw.get("defaults", {}), "defaults")
         _reject_seed(defaults)

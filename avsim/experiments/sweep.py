@@ -1,0 +1,286 @@
+"""Sweep files (`experiments/sweeps/*.toml`): every combination of a grid of config values, run.
+
+    title = "Safety map: speed x attack budget x policy"
+    seeds = 1                            # each grid point runs at scenario.seed = 0 .. seeds-1 (default 1)
+    [defaults]                           # applied to every run: nested overrides, as in experiment files
+    scenario = { town = "town07", placement = "standard" }
+    [grid]                               # dotted config key -> the values it takes
+    "scenario.speed_kmh" = [30, 60, 85]
+    "scenario.sign" = ["clean", "yang"]
+    "policy.name" = ["baseline", "side_camera"]
+
+The runs are the cartesian product of the grid's lists, times the seeds, in a fixed order:
+the grid keys in file order, the first key varying slowest and the seed fastest. A grid
+key may also be written as a TOML dotted key (`scenario.speed_kmh = [...]`).
+
+Everything is checked when the file is loaded, before any run starts: unknown top-level
+and config keys, empty lists, repeated values, wrong types and out-of-range values (by the
+config dataclasses), registry names (town, placement, policy, perception) and sign
+textures, and then every combination's full config (for limits that tie two keys together).
+Each error is one `ConfigError` line naming the file, the place in it and the key.
+
+`run_sweep` writes into one folder:
+    sweep.toml        the sweep file as it was run
+    results.jsonl     one record per run (`avsim.experiments.batch`), plus `point`: the run's
+                      grid values, dotted key -> value; in grid order once the sweep is over
+    manifest.json     command, workers, wall time, runs, failures, versions
+    summary.md        the safety map and every run's outcome (`avsim.experiments.sweep_report`)
+    safety_map.png    the figure
+
+With `resume`, runs whose config hash already has an `ok` record in results.jsonl are not
+run again; failed runs are. The hash is the run's whole config, so growing the grid (a new
+speed) reuses every finished run.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import itertools
+import json
+import os
+import shutil
+import time
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from avsim.config import SimConfig, with_overrides
+from avsim.errors import ConfigError
+from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
+from avsim.experiments.spec import (_check_registry_names, _deep_merge, _located, _nested, _reject_seed, _table,
+                                   read_run_file)
+from avsim.metrics import write_json_atomic
+
+TOP_LEVEL_KEYS = ("title", "seeds", "defaults", "grid")
+DEFAULT_SEEDS = 1
+RESULTS_FILE = "results.jsonl"
+
+Scalar = str | int | float | bool
+
+
+@dataclass(frozen=True)
+class SweepRun:
+    """One run of a sweep: a grid point at one seed, with its final config.
+
+    point: the grid's dotted keys -> this run's values (as the config holds them: 30 -> 30.0).
+    """
+
+    point: dict[str, Scalar]
+    seed: int
+    config: SimConfig
+
+    @property
+    def label(self) -> str:
+        """The point as one line, e.g. "scenario.speed_kmh=30.0, policy.name=baseline"."""
+        return point_label(self.point)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A loaded sweep file.
+
+    base: SimConfig() with [defaults] applied; grid: (dotted key, values) in file order.
+    """
+
+    path: Path
+    title: str
+    seeds: int
+    base: SimConfig
+    grid: tuple[tuple[str, tuple[Scalar, ...]], ...]
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+    def points(self) -> list[dict[str, Scalar]]:
+        """Every combination of grid values; the first key varies slowest."""
+        keys = [key for key, _ in self.grid]
+        return [dict(zip(keys, values)) for values in itertools.product(*(values for _, values in self.grid))]
+
+    def config_at(self, point: Mapping[str, Scalar], seed: int) -> SimConfig:
+        overrides: dict[str, Any] = {"scenario": {"seed": seed}}
+        for key, value in point.items():
+            overrides = _deep_merge(overrides, _nested(key, value))
+        return with_overrides(self.base, overrides)
+
+    def runs(self) -> list[SweepRun]:
+        """Every grid point at seeds 0 .. seeds-1, point by point."""
+        return [SweepRun(point, seed, self.config_at(point, seed)) for point in self.points() for seed in range(self.seeds)]
+
+    def specs(self) -> list[RunSpec]:
+        """The runs as batch specs: experiment = the sweep's name, cell = the point's label; no recording."""
+        return [RunSpec(self.name, run.label, run.seed, run.config) for run in self.runs()]
+
+
+def point_label(point: Mapping[str, Scalar]) -> str:
+    return ", ".join(f"{key}={value}" for key, value in point.items())
+
+
+# ---- loading ---------------------------------------------------------------------------------
+
+def load_sweep(path: str | os.PathLike) -> Sweep:
+    """Read and check a sweep file; see the module docstring for its format."""
+    path = Path(path)
+    raw, title, seeds = read_run_file(path, "sweep", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
+
+    with _located(path, "[defaults]"):
+        defaults = _table(raw.get("defaults", {}), "defaults")
+        _reject_seed(defaults)
+        base = with_overrides(SimConfig(), defaults)
+        _check_names(base)
+    with _located(path, "[grid]"):
+        grid = _parse_grid(raw.get("grid"), base)
+    sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid)
+    # Each value is valid alone; check every combination too (limits that tie two keys together).
+    for point in sweep.points():
+        with _located(path, f"[grid] point {point_label(point)}"):
+            sweep.config_at(point, 0)
+    return sweep
+
+
+def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...]], ...]:
+    if raw is None:
+        raise ConfigError("no [grid] table; add one of dotted config keys and value lists, e.g. \"scenario.speed_kmh\" = [30, 60]")
+    entries = list(_flatten(_table(raw, "grid")))
+    if not entries:
+        raise ConfigError("the grid is empty; give it at least one key, e.g. \"scenario.speed_kmh\" = [30, 60]")
+    grid: list[tuple[str, tuple[Scalar, ...]]] = []
+    for key, values in entries:
+        if any(key == seen for seen, _ in grid):
+            raise ConfigError(f"'{key}' is given twice")
+        if key == "scenario.seed":
+            raise ConfigError("'scenario.seed' cannot be a grid key: it is the run's seed, set by the top-level 'seeds'")
+        if not isinstance(values, list):
+            raise ConfigError(f"'{key}' must be a list of values, e.g. [30, 60], got {values!r}")
+        if not values:
+            raise ConfigError(f"'{key}' is an empty list; give it at least one value")
+        checked: list[Scalar] = []
+        for value in values:
+            if isinstance(value, (Mapping, list)):
+                raise ConfigError(f"'{key}' values must be numbers, strings or booleans, got {value!r}")
+            config = with_overrides(base, _nested(key, value))  # unknown key, wrong type, out of range
+            _check_names(config)
+            held = _lookup(config, key)
+            if held in checked:
+                raise ConfigError(f"'{key}' lists the value {value!r} twice")
+            checked.append(held)
+        grid.append((key, tuple(checked)))
+    return tuple(grid)
+
+
+def _flatten(table: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """("scenario", {"speed_kmh": [..]}) and ("scenario.speed_kmh", [..]) both -> "scenario.speed_kmh"."""
+    for key, value in table.items():
+        if isinstance(value, Mapping):
+            yield from _flatten(value, f"{prefix}{key}.")
+        else:
+            yield f"{prefix}{key}", value
+
+
+def _lookup(config: SimConfig, dotted: str) -> Scalar:
+    node: Any = config
+    for part in dotted.split("."):
+        node = getattr(node, part)
+    return node
+
+
+def _check_names(config: SimConfig) -> None:
+    """Registry names (town, placement, policy, perception) and the sign texture."""
+    from avsim.world.scene import resolve_sign_texture
+
+    _check_registry_names(config)
+    sign = config.scenario.sign
+    try:
+        texture = resolve_sign_texture(sign)
+    except ConfigError as exc:
+        raise ConfigError(f"scenario.sign: {exc}") from None
+    if not texture.is_file():
+        raise ConfigError(f"scenario.sign: no texture file '{sign}'")
+
+
+# ---- running ---------------------------------------------------------------------------------
+
+def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None = None, resume: bool = False,
+              progress: bool = True) -> Path:
+    """Run every point of `sweep` into `out_dir` (see the module docstring); returns `out_dir`.
+
+    Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is off.
+    """
+    from avsim.experiments.reproduce import _versions, default_workers
+    from avsim.experiments.sweep_report import write_sweep_report
+
+    out = Path(out_dir)
+    results_path = out / RESULTS_FILE
+    existing = read_records(results_path)
+    if existing and not resume:
+        raise ConfigError(f"{results_path} already holds {len(existing)} runs; pass --resume to run only the "
+                          f"missing ones, or choose another --out")
+    workers = default_workers() if workers is None else workers
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+
+    runs = sweep.runs()
+    specs = sweep.specs()
+    point_of = {spec.spec_hash: run.point for spec, run in zip(specs, runs)}
+    if len(point_of) != len(specs):
+        raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
+    finished = {r["spec_hash"]: r for r in existing if r.get("status") == "ok" and r.get("spec_hash") in point_of}
+    todo = [spec for spec in specs if spec.spec_hash not in finished]
+
+    started = time.perf_counter()
+    started_at = dt.datetime.now().astimezone()
+    history = _history(out / "manifest.json") if resume else []
+    out.mkdir(parents=True, exist_ok=True)
+    if sweep.path.resolve() != (out / "sweep.toml").resolve():
+        shutil.copy2(sweep.path, out / "sweep.toml")
+    writer = JsonlWriter(results_path)
+    ran: dict[str, dict[str, Any]] = {}
+
+    def on_record(record: dict[str, Any]) -> None:
+        record = with_point(record, point_of[record["spec_hash"]])
+        ran[record["spec_hash"]] = record
+        writer.append(record)
+
+    run_batch(todo, workers=workers, root=out, on_record=on_record, progress=progress, description=sweep.name)
+    # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
+    records = [ran.get(spec.spec_hash) or finished[spec.spec_hash] for spec in specs]
+    others = [r for r in existing if r.get("spec_hash") not in point_of]
+    rewrite(results_path, records + others)
+    wall_s = time.perf_counter() - started
+    manifest = {
+        "command": f"avsim sweep {sweep.path} --out {out} --workers {workers}" + (" --resume" if resume else ""),
+        "started_at": started_at.isoformat(timespec="seconds"),
+        "title": sweep.title,
+        "wall_s": round(wall_s, 1),
+        "workers": workers,
+        "runs": len(records),
+        "ran": len(todo),
+        "reused": len(specs) - len(todo),
+        "failed": sum(1 for r in records if r["status"] == "failed"),
+        "grid": {key: list(values) for key, values in sweep.grid},
+        "seeds": sweep.seeds,
+        "versions": _versions(),
+        "history": history,
+    }
+    write_json_atomic(out / "manifest.json", manifest)
+    write_sweep_report(out, sweep, records, manifest)
+    return out
+
+
+def _history(manifest_path: Path) -> list[dict[str, Any]]:
+    """The earlier invocations that filled the folder (resumed ones included): command, start, wall time, runs run."""
+    try:
+        previous = json.loads(manifest_path.read_text())
+    except (OSError, ValueError):
+        return []
+    earlier = previous.get("history", [])
+    return [*earlier, {k: previous[k] for k in ("command", "started_at", "wall_s", "ran") if k in previous}]
+
+
+def with_point(record: dict[str, Any], point: Mapping[str, Scalar]) -> dict[str, Any]:
+    """`record` with its grid point after `seed`, so the file reads where-from first."""
+    keys = list(record)
+    cut = keys.index("seed") + 1 if "seed" in keys else len(keys)
+    return {**{k: record[k] for k in keys[:cut]}, "point": dict(point), **{k: record[k] for k in keys[cut:]}}
