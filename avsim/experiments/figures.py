@@ -108,13 +108,15 @@ def _confidence_series(by_stem: dict[str, Experiment], cells: Cells) -> dict[str
         for cell in by_stem["fig3_detection"].cells:
             series["front"].append((cell.name, cells.traces.get(("fig3_detection", cell.name), [])))
     for stem, label in (("table1_clean_defended", "clean (Table I)"), ("table2_attacked_defended", "attacked (Table II)"),
-                        ("adaptive_attacker", "adaptive")):
+                        ("adaptive_attacker", "adaptive experiment")):
         if stem not in by_stem:
             continue
-        traces = [t for cell in by_stem[stem].cells for t in cells.traces.get((stem, cell.name), []) if "side_conf" in t]
-        if traces:
-            sign = by_stem[stem].cells[0].config.scenario.sign
-            series["side"].append((f"{label}: {sign}", traces))
+        by_sign: dict[str, list[dict]] = {}
+        for cell in by_stem[stem].cells:
+            traces = [t for t in cells.traces.get((stem, cell.name), []) if "side_conf" in t]
+            if traces:
+                by_sign.setdefault(cell.config.scenario.sign, []).extend(traces)
+        series["side"].extend((f"{label}: {sign}", traces) for sign, traces in by_sign.items())
     return series
 
 

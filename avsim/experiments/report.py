@@ -157,27 +157,55 @@ def _fig3(cells: Cells, experiment: Experiment) -> list[str]:
     return lines
 
 
+DEFENCES = ("adjusted", "side_camera", "combined")
+
+
 def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
-    """Cells whose runs disagree with the study's outcome, or where a defence let the car run past,
-    with the deceleration stopping before the sign would have needed when braking began."""
-    notes = []
+    """Where a defended run (or an undefended one at the clean sign) ran past the sign, with the
+    deceleration stopping before the sign needed when braking began; then what each attacked sign
+    did to the undefended `baseline` rule, beside the study's."""
+    failures, attacks = [], []
     for experiment in experiments:
         stem = experiment.path.stem
         for cell in experiment.cells:
             results = cells.of(stem, cell.name)
             past = [r for r in results if r["outcome"] not in STOPPED_BEFORE_SIGN]
-            reference = study.TABLE3.get(cell.name) if stem == "table3_stop_positions" else None
-            study_past = reference is not None and reference.before_sign_m < 0
-            if study_past and len(past) < len(results):
-                notes.append(f"- {experiment.title} / {cell.name}: the study's car ran past the sign; ours stopped before it "
-                             f"in {len(results) - len(past)} of {len(results)} runs.")
-            if not study_past and past:
-                needed = [_needed_decel(r) for r in past]
-                why = ", ".join(f"{n:.1f}" if n is not None else "no brake" for n in needed)
-                notes.append(f"- {experiment.title} / {cell.name}: ran past the sign in {len(past)} of {len(results)} runs "
-                             f"(stopping before the sign from where braking began needed {why} m/s²; the car's full brake "
-                             f"gives about {FULL_BRAKE_DECEL_MPS2} m/s²).")
-    return notes or ["- Every cell's outcome agrees with the study's: no defended run ran past the sign."]
+            config = cell.config
+            where = f"{experiment.title} / {cell.name}"
+            if config.policy.name == "baseline" and config.scenario.sign != "clean":
+                attacks.append(f"- {where}: ran past the sign in {len(past)} of {len(results)} runs"
+                               f"{_needed(past)} (the study's attacked car ran {-study.TABLE3['attacked sign, baseline'].before_sign_m:g} m past).")
+            elif past:
+                kind = "defence" if config.policy.name in DEFENCES else "undefended run at the clean sign"
+                failures.append(f"- {where} ({kind}): ran past the sign in {len(past)} of {len(results)} runs{_needed(past)}.")
+    lines = ["Defended runs (and clean-sign runs) that ran past the sign:", ""]
+    lines += failures or ["- none: every defended run stopped before the sign."]
+    if attacks:
+        lines += ["", "What each attacked sign did to the undefended `baseline` rule:", "", *attacks]
+    return lines
+
+
+def _needed(past: Sequence[dict[str, Any]]) -> str:
+    """Why, in physics: the deceleration each run that ran past needed when braking began."""
+    if not past:
+        return ""
+    needed = [_needed_decel(r) for r in past]
+    why = ", ".join(f"{n:.1f} m/s²" if n is not None else "never braked (no stop sign seen above the threshold)"
+                    for n in needed)
+    return (f"; stopping before the sign from where braking began needed {why}, against about "
+            f"{FULL_BRAKE_DECEL_MPS2} m/s² at full brake")
+
+
+def adaptive_answer(cells: Cells, experiment: Experiment) -> list[str]:
+    """Whether defence 2 holds: every side-camera cell's outcome, the adaptive sign and the front-only attack."""
+    stem = experiment.path.stem
+    lines = []
+    for cell in experiment.cells:
+        if cell.config.policy.name in ("side_camera", "combined"):
+            margins = cells.values(stem, cell.name, "sign_margin_m")
+            lines.append(f"- {cell.name}: stopped before the sign in {cells.stopped(stem, cell.name)} runs, "
+                         f"bumper {fmt(margins)} m before it (smallest {min(margins):.1f} m)." if margins else f"- {cell.name}: no runs.")
+    return ["Does defence 2 (the side camera) hold when the attack also targets the side camera?", "", *lines, ""]
 
 
 def _needed_decel(result: dict[str, Any]) -> float | None:
@@ -215,6 +243,8 @@ def write_report(out_dir: Path, experiments: Sequence[Experiment], records: Sequ
             lines += _defended(cells, stem, study.TABLE2)
         elif stem == "fig3_detection":
             lines += _fig3(cells, experiment)
+        elif stem == "adaptive_attacker":
+            lines += adaptive_answer(cells, experiment)
         lines += ["All cells, avsim's own result keys (front bumper to sign):", "", *_cell_table(cells, experiment)]
     lines += ["## Findings", "", *findings(cells, experiments), ""]
     if failed:

@@ -86,3 +86,19 @@ def test_a_bad_experiment_file_fails_in_one_line_before_anything_is_written(tmp_
     err = capsys.readouterr().err
     assert code == 2 and len(err.splitlines()) == 1 and "town99" in err
     assert not (tmp_path / "results").exists()
+
+
+def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tmp_path):
+    from avsim.experiments.report import Cells, findings
+    from avsim.experiments.spec import load_experiment
+
+    path = tmp_path / "table3_stop_positions.toml"
+    path.write_text(TINY_TABLE3)
+    experiment = load_experiment(path)
+    ran_past = {"outcome": "stopped_past_sign", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 20.0}
+    stopped = {"outcome": "stopped_before_line", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 40.0}
+    records = [{"experiment": "table3_stop_positions", "cell": "attacked sign, side_camera", "seed": k, "status": "ok",
+                "result": result, "trace": {}} for k, result in enumerate((ran_past, stopped))]
+    lines = findings(Cells(records), [experiment])
+    assert any("attacked sign, side_camera (defence): ran past the sign in 1 of 2 runs" in line and "10.0 m/s²" in line
+               for line in lines)  # v²/2d = 400/40
