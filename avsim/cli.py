@@ -122,7 +122,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from avsim.experiments.sweep import load_sweep, run_sweep
 
     sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
-    out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress)
+    out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
+                    backend=args.backend, address=args.address)
     print((out / "summary.md").read_text())
     print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
     return 0
@@ -335,7 +336,13 @@ def build_parser() -> argparse.ArgumentParser:
                                        "and safety_map.png")
     swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
     swp.add_argument("--out", required=True, help="results folder")
-    swp.add_argument("--workers", type=int, help="runs at once in worker processes (default: one per core)")
+    swp.add_argument("--workers", type=int,
+                     help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
+                          "with --address, at most this many runs in flight (default: the cluster's CPUs)")
+    swp.add_argument("--backend", choices=("local", "ray"), default="local",
+                     help="local: a pool of processes on this machine (default); ray: Ray tasks, on a local "
+                          "cluster or the one at --address (pip install 'avsim[ray]')")
+    swp.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -2,12 +2,19 @@
 
     specs = [RunSpec("table3_stop_positions", run.cell_name, run.seed, run.config) for run in experiment.runs()]
     records = run_batch(specs, workers=2, on_record=writer.append)
+    records = run_batch(specs, workers=2, backend="ray")     # the same runs as Ray tasks
 
 Every run is `avsim.runner.run_recorded`, exactly what `avsim run` executes, so one record
-can be re-run alone with `avsim run --config FILE --cell NAME --seed K`. Workers are fresh
-`spawn`ed processes: each builds its own MuJoCo model and EGL context (an OpenGL context
-must never cross a fork). A run that raises becomes a `failed` record carrying the error,
-and the batch goes on.
+can be re-run alone with `avsim run --config FILE --cell NAME --seed K`. A run that raises
+becomes a `failed` record carrying the error, and the batch goes on.
+
+Backends (`BACKENDS`); both run `execute(spec, root)` for each spec:
+    local   this process (workers 1) or a pool of `workers` `spawn`ed processes on this
+            machine; each builds its own MuJoCo model and EGL context (an OpenGL context
+            must never cross a fork). A worker process that dies stops the batch.
+    ray     Ray tasks on a cluster, or on a local one of `workers` CPUs
+            (`avsim.experiments.ray_backend`, an optional extra: pip install 'avsim[ray]').
+Records, `on_record` and the progress bar are one code path for both.
 
 A record (`RunRecord.to_json_dict`, one line of `runs.jsonl`):
     experiment, cell, seed    where the run comes from
@@ -28,7 +35,7 @@ import json
 import multiprocessing
 import os
 import traceback
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,10 +43,12 @@ from typing import Any
 
 from avsim.config import SimConfig
 from avsim.control.policies import STOP_CLASS
+from avsim.errors import ConfigError
 from avsim.metrics import StepRecord
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
 _TRACE_DECIMALS = 4
+BACKENDS = ("local", "ray")
 
 
 @dataclass(frozen=True)
@@ -90,16 +99,13 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     from avsim.control.policies import POLICIES
     from avsim.runner import run_recorded
 
-    record: dict[str, Any] = {"experiment": spec.experiment, "cell": spec.cell, "seed": spec.seed,
-                              "spec_hash": spec.spec_hash, "status": "ok", "error": None, "result": None,
-                              "trace": None, "rrd": None, "wall_s": None}
+    record = _blank_record(spec)
     try:
         output = run_recorded(spec.config, rrd_path=spec.rrd_path)
     except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" (at {Path(last.filename).name}:{last.lineno})" if last else ""
-        record.update(status="failed", error=f"{type(exc).__name__}: {exc}{where}")
-        return record
+        return failed_record(spec, f"{type(exc).__name__}: {exc}{where}")
     # The policy classes declare the cameras they render; the trace has a series for each.
     cameras = POLICIES.get(spec.config.policy.name).cameras
     record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),
@@ -109,38 +115,79 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     return record
 
 
-def run_batch(specs: Sequence[RunSpec], *, workers: int = 1, root: str | os.PathLike | None = None,
+def _blank_record(spec: RunSpec) -> dict[str, Any]:
+    return {"experiment": spec.experiment, "cell": spec.cell, "seed": spec.seed, "spec_hash": spec.spec_hash,
+            "status": "ok", "error": None, "result": None, "trace": None, "rrd": None, "wall_s": None}
+
+
+def failed_record(spec: RunSpec, error: str) -> dict[str, Any]:
+    """The record of a run that did not finish; error: "ExceptionType: message"."""
+    return {**_blank_record(spec), "status": "failed", "error": error}
+
+
+def check_backend(backend: str, address: str | None = None) -> None:
+    """Raise a one-line ConfigError for an unknown backend, an address without Ray, or Ray not installed."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+    if address is not None and backend != "ray":
+        raise ConfigError(f"an address ('{address}') is a Ray cluster's; it needs the ray backend (--backend ray)")
+    if backend == "ray":
+        from avsim.experiments.ray_backend import require_ray
+
+        require_ray()
+
+
+def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,
               on_record: Callable[[dict[str, Any]], None] | None = None, progress: bool = True,
-              description: str = "runs") -> list[dict[str, Any]]:
+              description: str = "runs", backend: str = "local", address: str | None = None) -> list[dict[str, Any]]:
     """Run every spec; returns their records in the order of `specs`.
 
-    workers: processes running at once; 1 runs in this process. on_record is called in this
-    process as each run finishes (in finishing order), e.g. to append it to a results file.
+    workers: runs at once. local: processes (1 runs in this process); ray: the local cluster's
+    CPUs, or with `address` at most that many runs in flight (None: as many as the cluster
+    takes). on_record is called in this process as each run finishes (in finishing order),
+    e.g. to append it to a results file. backend, address: see the module docstring.
     """
     from tqdm import tqdm
 
+    check_backend(backend, address)
+    if backend == "local" and (workers is None or workers < 1):
+        raise ConfigError(f"the local backend needs workers >= 1, got {workers}")
+    if not specs:
+        return []  # nothing to run: no pool, no cluster
     root_str = str(root) if root is not None else None
     records: list[dict[str, Any] | None] = [None] * len(specs)
+    if backend == "ray":
+        from avsim.experiments.ray_backend import ray_results
+
+        results = ray_results(specs, root_str, workers=workers, address=address)
+    else:
+        results = _local_results(specs, workers, root_str)
     bar = tqdm(total=len(specs), desc=description, unit="run", disable=not progress, dynamic_ncols=True)
-
-    def finished(index: int, record: dict[str, Any]) -> None:
-        records[index] = record
-        if on_record is not None:
-            on_record(record)
-        failures = sum(1 for r in records if r is not None and r["status"] == "failed")
-        bar.set_postfix(failed=failures, refresh=False)
-        bar.update(1)
-
     try:
-        if workers <= 1:
-            for index, spec in enumerate(specs):
-                finished(index, execute(spec, root_str))
-        else:
-            context = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-                futures = {pool.submit(execute, spec, root_str): index for index, spec in enumerate(specs)}
-                for future in as_completed(futures):
-                    finished(futures[future], future.result())
+        for index, record in results:
+            records[index] = record
+            if on_record is not None:
+                on_record(record)
+            failures = sum(1 for r in records if r is not None and r["status"] == "failed")
+            bar.set_postfix(failed=failures, refresh=False)
+            bar.update(1)
     finally:
+        results.close()  # an early stop (an error in on_record, Ctrl-C) cancels the runs not yet started
         bar.close()
     return [r for r in records if r is not None]
+
+
+def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
+    """(index into specs, record) as each run finishes: in this process, or in a pool of spawned processes."""
+    if workers <= 1:
+        for index, spec in enumerate(specs):
+            yield index, execute(spec, root)
+        return
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        futures = {pool.submit(execute, spec, root): index for index, spec in enumerate(specs)}
+        try:
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+        finally:
+            pool.shutdown(cancel_futures=True)

@@ -19,17 +19,21 @@ config dataclasses), registry names (town, placement, policy, perception) and si
 textures, and then every combination's full config (for limits that tie two keys together).
 Each error is one `ConfigError` line naming the file, the place in it and the key.
 
-`run_sweep` writes into one folder:
+`run_sweep` runs the specs through `avsim.experiments.batch.run_batch`, on its local pool of
+processes or (backend "ray") as Ray tasks on a cluster; the records are the same either way.
+It writes into one folder:
     sweep.toml        the sweep file as it was run
     results.jsonl     one record per run (`avsim.experiments.batch`), plus `point`: the run's
                       grid values, dotted key -> value; in grid order once the sweep is over
-    manifest.json     command, workers, wall time, runs, failures, versions
+    manifest.json     command, backend, workers, wall time, runs, failures, versions
     summary.md        the safety map and every run's outcome (`avsim.experiments.sweep_report`)
     safety_map.png    the figure
 
 With `resume`, runs whose config hash already has an `ok` record in results.jsonl are not
 run again; failed runs are. The hash is the run's whole config, so growing the grid (a new
-speed) reuses every finished run.
+speed) reuses every finished run. A sweep killed at any moment (even mid-write: a torn last
+line is dropped before new records are appended) resumes to the same results.jsonl as a run
+never stopped, `wall_s` aside.
 """
 
 from __future__ import annotations
@@ -47,7 +51,7 @@ from typing import Any
 
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
-from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.batch import RunSpec, check_backend, run_batch
 from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
 from avsim.experiments.spec import (_check_registry_names, _deep_merge, _located, _nested, _reject_seed, _table,
                                    read_run_file)
@@ -203,22 +207,27 @@ def _check_names(config: SimConfig) -> None:
 # ---- running ---------------------------------------------------------------------------------
 
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None = None, resume: bool = False,
-              progress: bool = True) -> Path:
+              progress: bool = True, backend: str = "local", address: str | None = None) -> Path:
     """Run every point of `sweep` into `out_dir` (see the module docstring); returns `out_dir`.
 
-    Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is off.
+    workers: runs at once (default: one per core; on a Ray cluster at `address`, the cluster's
+    CPUs). backend, address: see `avsim.experiments.batch.run_batch`.
+    Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is
+    off, or the backend cannot run (Ray not installed).
     """
     from avsim.experiments.reproduce import _versions, default_workers
     from avsim.experiments.sweep_report import write_sweep_report
 
+    check_backend(backend, address)
     out = Path(out_dir)
     results_path = out / RESULTS_FILE
     existing = read_records(results_path)
     if existing and not resume:
         raise ConfigError(f"{results_path} already holds {len(existing)} runs; pass --resume to run only the "
                           f"missing ones, or choose another --out")
-    workers = default_workers() if workers is None else workers
-    if workers < 1:
+    if workers is None and address is None:
+        workers = default_workers()
+    if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
 
     runs = sweep.runs()
@@ -235,6 +244,8 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     out.mkdir(parents=True, exist_ok=True)
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
+    if _torn_tail(results_path):
+        rewrite(results_path, existing)  # else the next record would be glued onto the torn line
     writer = JsonlWriter(results_path)
     ran: dict[str, dict[str, Any]] = {}
 
@@ -243,17 +254,23 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
         ran[record["spec_hash"]] = record
         writer.append(record)
 
-    run_batch(todo, workers=workers, root=out, on_record=on_record, progress=progress, description=sweep.name)
+    run_batch(todo, workers=workers, root=out, on_record=on_record, progress=progress, description=sweep.name,
+              backend=backend, address=address)
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     records = [ran.get(spec.spec_hash) or finished[spec.spec_hash] for spec in specs]
     others = [r for r in existing if r.get("spec_hash") not in point_of]
     rewrite(results_path, records + others)
     wall_s = time.perf_counter() - started
+    options = [f"--workers {workers}" if workers is not None else "",
+               f"--backend {backend}" if backend != "local" else "",
+               f"--address {address}" if address is not None else "", "--resume" if resume else ""]
     manifest = {
-        "command": f"avsim sweep {sweep.path} --out {out} --workers {workers}" + (" --resume" if resume else ""),
+        "command": " ".join([f"avsim sweep {sweep.path} --out {out}", *filter(None, options)]),
         "started_at": started_at.isoformat(timespec="seconds"),
         "title": sweep.title,
         "wall_s": round(wall_s, 1),
+        "backend": backend,
+        "address": address,
         "workers": workers,
         "runs": len(records),
         "ran": len(todo),
@@ -267,6 +284,16 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     write_json_atomic(out / "manifest.json", manifest)
     write_sweep_report(out, sweep, records, manifest)
     return out
+
+
+def _torn_tail(path: Path) -> bool:
+    """True when `path` ends in a line without its newline: a write cut short by a crash."""
+    try:
+        with path.open("rb") as f:
+            f.seek(-1, os.SEEK_END)
+            return f.read(1) != b"\n"
+    except OSError:  # no file, or an empty one
+        return False
 
 
 def _history(manifest_path: Path) -> list[dict[str, Any]]:

@@ -202,8 +202,7 @@ def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], fron
     lines = [
         f"# {sweep.title}", "",
         f"{manifest['runs']} runs ({manifest['failed']} failed), {sweep.seeds} seed(s) per grid point; "
-        f"{manifest['ran']} run now and {manifest['reused']} reused, in {manifest['wall_s']:.0f} s with "
-        f"{manifest['workers']} worker{'s' if manifest['workers'] != 1 else ''}"
+        f"{manifest['ran']} run now and {manifest['reused']} reused, in {manifest['wall_s']:.0f} s {_ran_on(manifest)}"
         + (f" ({len(manifest['history'])} earlier invocation(s) in manifest.json)" if manifest.get("history") else "")
         + f"; the runs' own wall times add up to {_run_seconds(records):.0f} s. "
         f"Grid speeds [km/h]: {', '.join(f'{s:g}' for s in smap.speeds_kmh)}.", "",
@@ -256,6 +255,16 @@ def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], fron
         lines += ["", f"## Failed runs ({len(failed)})", ""]
         lines += [f"- {r['cell']}, seed {r['seed']}: {r['error']}" for r in failed]
     return "\n".join(lines) + "\n"
+
+
+def _ran_on(manifest: Mapping[str, Any]) -> str:
+    """Where the runs ran: e.g. 'with 2 workers', 'with 2 Ray workers', 'on the Ray cluster at HOST:6379'."""
+    workers, backend, address = manifest["workers"], manifest.get("backend", "local"), manifest.get("address")
+    if backend == "ray" and address is not None:
+        cap = f" (at most {workers} run{'s' if workers != 1 else ''} at once)" if workers is not None else ""
+        return f"on the Ray cluster at {address}{cap}"
+    kind = "Ray worker" if backend == "ray" else "worker"
+    return f"with {workers} {kind}{'s' if workers != 1 else ''}"
 
 
 def _run_seconds(records: Sequence[Mapping[str, Any]]) -> float:

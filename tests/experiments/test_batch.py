@@ -2,7 +2,8 @@
 
 import pytest
 
-from avsim.experiments.batch import RunSpec, config_hash, execute, run_batch
+from avsim.errors import ConfigError
+from avsim.experiments.batch import RunSpec, config_hash, execute, failed_record, run_batch
 from avsim.loop import run_config
 from helpers import make_config
 
@@ -46,6 +47,19 @@ def test_a_run_that_raises_is_a_failed_record_and_the_batch_goes_on(tmp_path):
     assert [r["status"] for r in records] == ["failed", "ok"]
     assert "missing.png" in records[0]["error"] and records[0]["result"] is None
     assert len(seen) == 2
+    # A worker that died (ray backend) is recorded in the same shape.
+    assert failed_record(specs[0], "WorkerCrashedError: x").keys() == records[0].keys()
+
+
+@pytest.mark.parametrize("backend, address, workers, expected", [
+    ("dask", None, 1, "unknown backend 'dask'"),
+    ("local", "auto", 1, "needs the ray backend"),
+    ("local", None, 0, "the local backend needs workers >= 1"),
+])
+def test_a_bad_backend_is_one_line_before_any_run(backend, address, workers, expected):
+    with pytest.raises(ConfigError, match=expected) as info:
+        run_batch([_spec("never")], workers=workers, backend=backend, address=address, progress=False)
+    assert "\n" not in str(info.value)
 
 
 def test_worker_processes_give_the_records_of_one_process():

@@ -167,6 +167,40 @@ def test_a_second_sweep_into_the_same_folder_needs_resume_which_reuses_the_ok_ru
     assert (smoke_out / "results.jsonl").read_text() == before
 
 
+def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_again_on_resume(smoke_out, tmp_path,
+                                                                                              monkeypatch):
+    import avsim.runner
+
+    real = avsim.runner.run_recorded
+
+    def renderer_lost_at_60(config, **kwargs):
+        if config.scenario.speed_kmh == 60.0:
+            raise RuntimeError("EGL context lost")
+        return real(config, **kwargs)
+
+    monkeypatch.setattr(avsim.runner, "run_recorded", renderer_lost_at_60)  # --workers 1 runs in this process
+    out = tmp_path / "failing"
+    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]) == 0
+    records = read_records(out / "results.jsonl")
+    assert [r["status"] for r in records] == ["ok", "ok", "failed", "failed"]
+    for record in records[2:]:
+        assert record["error"].startswith("RuntimeError: EGL context lost (at test_sweep.py:")
+        assert record["result"] is None and record["trace"] is None
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (manifest["runs"], manifest["failed"]) == (4, 2)
+    summary = (out / "summary.md").read_text()
+    assert "4 runs (2 failed)" in summary and "## Failed runs (2)" in summary
+    assert "- scenario.speed_kmh=60.0, policy.name=baseline, seed 0: RuntimeError: EGL context lost" in summary
+    assert "| baseline | 40 |" in summary  # a failed speed is not known to be safe
+
+    monkeypatch.undo()
+    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--resume", "--no-progress"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (manifest["ran"], manifest["reused"], manifest["failed"]) == (2, 2, 0)
+    strip = lambda rs: [{k: v for k, v in r.items() if k != "wall_s"} for r in rs]  # noqa: E731
+    assert strip(read_records(out / "results.jsonl")) == strip(read_records(smoke_out / "results.jsonl"))
+
+
 # ---- the safety map, on synthetic records ----------------------------------------------------
 
 def _record(policy: str, sign: str, speed: float, outcome: str | None, seed: int = 0, margin: float = 1.0) -> dict:

@@ -1,0 +1,116 @@
+"""The `ray` backend of `run_batch`: a batch's runs as Ray tasks, on a cluster or on this machine.
+
+    records = run_batch(specs, workers=2, backend="ray")                  # a local 2-CPU Ray cluster
+    records = run_batch(specs, backend="ray", address="auto")             # the cluster this node is part of
+    avsim sweep FILE --out DIR --backend ray --address 10.0.0.5:6379
+
+Why: the local pool stops at one machine's cores; a Ray cluster spreads the same runs over many.
+
+Each task is `avsim.experiments.batch.execute(spec, root)`, the function a local pool worker
+runs, in a Ray worker process: a fresh Python process, so it builds its own MuJoCo model and
+EGL context as a spawned pool worker does. A task asks for one CPU (a run is single-threaded,
+see `PerceptionConfig.threads`), so a node runs as many at once as it has CPUs. The spec
+(`RunSpec`, its `SimConfig` a frozen dataclass) is pickled to the worker; the record comes back.
+
+What it guarantees, as the local pool does: one record per spec, handed over in finishing
+order; the same record for the same spec on either backend (a run is seeded by its config;
+`wall_s` aside); a run that raises is a `failed` record. Beyond the pool: a worker process
+that dies (a crash, out of memory, a lost node) is run again by Ray up to `MAX_RETRIES`
+times, then it is a `failed` record too, and the batch goes on.
+
+What it needs from a cluster: on every node, avsim at the same version with the same Python
+and Ray, and the files the configs name (sign textures, detector weights) at the same paths.
+A run's `.rrd` (`RunSpec.rrd_path`) is written on the node that ran it. `ray://` client
+addresses need `pip install 'ray[client]'` as well. A cluster with token authentication (on by
+default for clusters Ray 2.60 starts) is joined with `RAY_AUTH_MODE=token` and the cluster's
+token in `~/.ray/auth_token` (or `RAY_AUTH_TOKEN`). Ray keeps retrying an address where no
+cluster answers; stop it with Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import os
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+from avsim.errors import ConfigError
+
+INSTALL_HINT = "pip install 'avsim[ray]'"
+# Times Ray reruns a task whose worker process died before the run is recorded as failed.
+MAX_RETRIES = 2
+
+
+def require_ray() -> Any:
+    """The `ray` module, or a one-line ConfigError naming the install command."""
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError(f"the ray backend needs Ray, which is not installed: {INSTALL_HINT}") from None
+    return ray
+
+
+@contextlib.contextmanager
+def session(address: str | None, workers: int | None) -> Iterator[Any]:
+    """A Ray session for one batch; yields the `ray` module.
+
+    address None: start a local cluster of `workers` CPUs, stopped on exit. address given:
+    connect to that cluster ("auto", "HOST:6379", "ray://HOST:10001"), disconnect on exit.
+    A session the caller already started (`ray.init` before) is used as it is, and left open.
+    """
+    ray = require_ray()
+    if ray.is_initialized():
+        yield ray
+        return
+    if address is None:
+        if workers is None or workers < 1:
+            raise ConfigError(f"a local Ray cluster needs workers >= 1, got {workers}")
+        # Its workers inherit this process's environment, MUJOCO_GL included.
+        ray.init(num_cpus=workers, include_dashboard=False)
+    else:
+        # A remote node has its own environment: send the renderer this driver chose (avsim defaults to EGL).
+        env = {"env_vars": {"MUJOCO_GL": os.environ["MUJOCO_GL"]}} if "MUJOCO_GL" in os.environ else None
+        ray.init(address=address, runtime_env=env)
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def ray_results(specs: Sequence[Any], root: str | None, *, workers: int | None,
+                address: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
+    """Run `specs` (RunSpecs) as Ray tasks; yield (index into specs, record) as each finishes.
+
+    workers: the local cluster's CPUs when address is None; with an address, at most that many
+    runs in flight (None: every run is submitted and the cluster's CPUs decide).
+    """
+    from avsim.experiments.batch import execute, failed_record
+
+    with session(address, workers) as ray:
+        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute)
+        in_flight = len(specs) if workers is None else workers
+        waiting = iter(enumerate(specs))
+        pending: dict[Any, int] = {}  # ObjectRef -> index into specs
+        try:
+            while True:
+                for index, spec in itertools.islice(waiting, max(0, in_flight - len(pending))):
+                    pending[task.remote(spec, root)] = index
+                if not pending:
+                    return
+                [ref], _ = ray.wait(list(pending), num_returns=1)
+                index = pending.pop(ref)
+                try:
+                    record = ray.get(ref)
+                except ray.exceptions.RayError as exc:  # worker died MAX_RETRIES + 1 times, or task lost
+                    record = failed_record(specs[index], f"{type(exc).__name__}: {_first_line(exc)}")
+                yield index, record
+        finally:
+            # Stopped early (an error in the caller, Ctrl-C): the cluster need not finish the batch.
+            for ref in pending:
+                ray.cancel(ref)
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    return lines[0] if lines else "no message"
