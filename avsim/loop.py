@@ -13,7 +13,6 @@ hold), as a real ECU's would be between sensor frames.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 
 import mujoco
@@ -150,11 +149,12 @@ class ClosedLoop:
 
 
 def run_config(config: SimConfig) -> tuple[RunResult, float]:
-    """Run `config` to the end; returns the result and the wall-clock time [s]."""
-    start = time.perf_counter()
-    loop = ClosedLoop(config)
-    try:
-        result = loop.run()
-    finally:
-        loop.close()
-    return result, time.perf_counter() - start
+    """Run `config` to the end; returns the result and the wall-clock time [s].
+
+    The same run as `avsim.runner.run_recorded` without recorders (imported here: the runner
+    builds on this module).
+    """
+    from avsim.runner import run_recorded
+
+    output = run_recorded(config)
+    return output.result, output.wall_s
