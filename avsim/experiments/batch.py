@@ -163,12 +163,13 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
     else:
         results = _local_results(specs, workers, root_str)
     bar = tqdm(total=len(specs), desc=description, unit="run", disable=not progress, dynamic_ncols=True)
+    failures = 0
     try:
         for index, record in results:
             records[index] = record
             if on_record is not None:
                 on_record(record)
-            failures = sum(1 for r in records if r is not None and r["status"] == "failed")
+            failures += record["status"] == "failed"
             bar.set_postfix(failed=failures, refresh=False)
             bar.update(1)
     finally:

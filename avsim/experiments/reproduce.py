@@ -82,8 +82,8 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     from avsim.experiments.report import write_report
 
     experiments = load_study(experiment_paths, quick)
-    workers = workers or default_workers()
-    if workers < 1:
+    workers = default_workers() if workers is None else workers
+    if workers < 1:  # checked here too: before the results folder is made
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
@@ -96,14 +96,13 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     # Finishing order depends on the workers; the file ends in spec order, the same every time.
     rewrite(out / "runs.jsonl", records)
     wall_s = time.perf_counter() - started
-    failures = [r for r in records if r["status"] == "failed"]
     manifest = {
         "command": "avsim reproduce" + (" --quick" if quick else ""),
         "started_at": started_at.isoformat(timespec="seconds"),
         "wall_s": round(wall_s, 1),
         "workers": workers,
         "runs": len(records),
-        "failed": len(failures),
+        "failed": sum(r["status"] == "failed" for r in records),
         "experiments": {e.path.stem: {"title": e.title, "seeds": e.seeds, "cells": [c.name for c in e.cells]}
                         for e in experiments},
         "versions": _versions(),

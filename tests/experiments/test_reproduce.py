@@ -102,3 +102,11 @@ def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tm
     lines = findings(Cells(records), [experiment])
     assert any("attacked sign, side_camera (defence): ran past the sign in 1 of 2 runs" in line and "10.0 m/s²" in line
                for line in lines)  # v²/2d = 400/40
+
+
+def test_zero_workers_is_refused_before_a_results_folder_is_made(tmp_path, capsys):
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3)
+    code = cli.main(["reproduce", "--experiments", str(experiment), "--workers", "0", "--out", str(tmp_path / "results")])
+    assert code == 2 and "--workers" in capsys.readouterr().err
+    assert not (tmp_path / "results").exists()
