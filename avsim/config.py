@@ -176,8 +176,23 @@ class PerceptionConfig:
     # pattern is drawn from scenario.seed, so seeds differ in their noise. The oracle reads
     # segmentation and has none.
     sensor_noise_std: float = 0.0
+    # Regions of interest (x0, y0, x1, y1) [px] of the front and side images: the detector
+    # reports only boxes whose network cell centre lies inside, and runs its network on the
+    # region plus `detector.roi.CONTEXT_PX` of context instead of the whole frame. Inside the
+    # region every score and box equals the whole-frame network's, bit for bit (the context
+    # covers the receptive field); non-maximum suppression then runs among the region's boxes.
+    # The defaults hold every stop sign of the study's towns and
+    # placements, which stand right of the road and above the camera: the front camera sees
+    # them right of x = 320 and both cameras above the horizon (y = 240), and the car's own
+    # nose dive under braking only lifts them. (0, 0, width, height) is the whole frame.
+    front_roi_px: tuple[int, int, int, int] = (288, 0, 640, 256)
+    side_roi_px: tuple[int, int, int, int] = (0, 0, 640, 256)
 
     def __post_init__(self) -> None:
+        for key in ("front_roi_px", "side_roi_px"):
+            x0, y0, x1, y1 = getattr(self, key)
+            _require(0 <= x0 < x1 and 0 <= y0 < y1,
+                     f"perception.{key} must be [x0, y0, x1, y1] with 0 <= x0 < x1 and 0 <= y0 < y1 [px], got {list(getattr(self, key))}")
         _require(0 <= self.sensor_noise_std <= 50, f"perception.sensor_noise_std must be in [0, 50] levels, got {self.sensor_noise_std}")
         _require(1 <= self.threads <= 64, f"perception.threads must be in [1, 64], got {self.threads}")
         _require(self.min_box_height_px >= 1, f"perception.min_box_height_px must be >= 1, got {self.min_box_height_px}")
@@ -269,5 +284,17 @@ def _coerce(value: Any, annotation: Any, dotted: str) -> Any:
             return float(value)
         if kind in (int, str, bool) and type(value) is kind:
             return value
-    names = " or ".join(getattr(k, "__name__", str(k)) for k in expected)
+        item_kinds = typing.get_args(kind)
+        if (typing.get_origin(kind) is tuple and isinstance(value, (list, tuple)) and len(value) == len(item_kinds)
+                and all(type(v) is k for v, k in zip(value, item_kinds))):
+            return tuple(value)
+    names = " or ".join(_type_name(k) for k in expected)
     raise ConfigError(f"config key '{dotted}' must be {names}, got {value!r}")
+
+
+def _type_name(kind: Any) -> str:
+    """'float', or 'a list of 4 ints' for tuple[int, int, int, int]."""
+    if typing.get_origin(kind) is tuple:
+        items = typing.get_args(kind)
+        return f"a list of {len(items)} {items[0].__name__}s"
+    return getattr(kind, "__name__", str(kind))

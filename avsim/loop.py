@@ -77,7 +77,7 @@ class ClosedLoop:
         """
         speed = self.vehicle.speed_mps()
         # render -> perceive
-        detections = {cam: self.perception.detect(self.rig, self.data, cam) for cam in self.policy.cameras}
+        detections = self.perception.detect_cameras(self.rig, self.data, self.policy.cameras)
         # decide
         bumper = self.vehicle.front_bumper_xy_m()
         obs = Observation(self.time_s, speed, detections, self.scene.stop_line_x_m - bumper[0])
@@ -145,6 +145,7 @@ class ClosedLoop:
         return summarise(self.records, final, (sign[0], sign[1]), self.stopped, self.config.to_dict())
 
     def close(self) -> None:
+        self.perception.close()
         self.rig.close()
 
 

@@ -190,3 +190,21 @@ def test_default_to_dict_round_trips():
 def test_configs_are_frozen(obj, attr, value):
     with pytest.raises(dataclasses.FrozenInstanceError):
         setattr(obj, attr, value)
+
+
+def test_a_region_of_interest_is_a_list_of_four_ints():
+    config = with_overrides(SimConfig(), {"perception": {"front_roi_px": [0, 0, 640, 480]}})
+    assert config.perception.front_roi_px == (0, 0, 640, 480)
+    assert with_overrides(SimConfig(), config.to_dict()) == config  # survives the JSON round trip
+
+
+@pytest.mark.parametrize("value, message", [
+    ([0, 0, 640], "must be a list of 4 ints"),
+    ([0, 0, 640.0, 480], "must be a list of 4 ints"),
+    ("0,0,640,480", "must be a list of 4 ints"),
+    ([300, 0, 200, 480], "0 <= x0 < x1"),
+    ([0, -1, 640, 480], "0 <= y0 < y1"),
+])
+def test_a_bad_region_of_interest_is_a_clear_error(value, message):
+    with pytest.raises(ConfigError, match=message):
+        with_overrides(SimConfig(), {"perception": {"side_roi_px": value}})

@@ -178,6 +178,24 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
     return [r for r in records if r is not None]
 
 
+def worker_env(workers: int) -> dict[str, str]:
+    """Environment for one of `workers` run processes on this machine: its share of the cores.
+
+    Mesa's llvmpipe rasterises on as many threads as the machine has cores (LP_NUM_THREADS);
+    with one such renderer per worker the workers' threads fight over the cores. Each worker
+    gets cores // workers threads instead. The thread count does not change a pixel: the
+    image is cut into tiles that each thread draws the same way. A user's own
+    LP_NUM_THREADS wins.
+    """
+    if "LP_NUM_THREADS" in os.environ:
+        return {}
+    return {"LP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // max(1, workers)))}
+
+
+def _set_env(env: dict[str, str]) -> None:
+    os.environ.update(env)
+
+
 def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
     """(index into specs, record) as each run finishes: in this process, or in a pool of spawned processes."""
     if workers <= 1:
@@ -185,7 +203,7 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> 
             yield index, execute(spec, root)
         return
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_set_env, initargs=(worker_env(workers),)) as pool:
         futures = {pool.submit(execute, spec, root): index for index, spec in enumerate(specs)}
         try:
             for future in as_completed(futures):

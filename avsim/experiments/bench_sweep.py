@@ -9,7 +9,10 @@ cluster's start is timed apart (it is started once per sweep). Prints measured f
 nothing asserts.
 
     runs/min      runs / wall time [1/min]
-    scaling       runs/min with 2 workers / (2 x runs/min with 1 worker); 1.0 is perfect
+    scaling       runs/min with 2 workers / (2 x runs/min with 1 worker); 1.0 is perfect. Measured
+                  twice: against one worker that renders on every core (what `--workers 1` does),
+                  and against one worker on one core's share, which is what each of two workers
+                  gets (`batch.worker_env`): the second is the pool's scaling at a fixed share.
     Ray overhead  Ray's wall time (cluster start included) minus the local pool's, both at 2 workers [s]
     peak memory   highest peak resident set (VmHWM) of a process that ran the runs [MiB]; with 1 local
                   worker the runs share this process, so it includes the driver
@@ -137,6 +140,23 @@ def time_local(specs: Sequence[RunSpec], workers: int) -> Timing:
     return Timing(f"local, {workers} worker{'s' if workers != 1 else ''}", len(specs), wall_s, peak, cpu_s)
 
 
+def time_one_core(specs: Sequence[RunSpec]) -> Timing:
+    """The specs in one spawned worker given one core's share, as each of two workers gets on
+    two cores (`batch.worker_env`): the baseline for scaling at a fixed share per worker."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from avsim.experiments.batch import _set_env
+
+    context = multiprocessing.get_context("spawn")
+    with WorkerSampler(_is_pool_worker) as sampler:
+        start = time.perf_counter()
+        with ProcessPoolExecutor(1, mp_context=context, initializer=_set_env, initargs=({"LP_NUM_THREADS": "1"},)) as pool:
+            pool.submit(run_batch, list(specs), workers=1, progress=False).result()
+        wall_s = time.perf_counter() - start
+    return Timing("local, 1 worker on 1 core", len(specs), wall_s, sampler.peak_mib, sampler.cpu_s)
+
+
 def time_ray(specs: Sequence[RunSpec], workers: int) -> Timing:
     from avsim.experiments.ray_backend import session
 
@@ -166,7 +186,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     specs = bench_specs(args.seeds)
     print(f"sweep throughput: {len(specs)} runs ({SMOKE_SWEEP.name} grid x {args.seeds} seeds, oracle perception)")
     # One worker first: its peak is this process's, before the other configurations run.
-    timings = [time_local(specs, 1), time_local(specs, 2)]
+    timings = [time_local(specs, 1), time_local(specs, 2), time_one_core(specs)]
     if not args.no_ray:
         timings.append(time_ray(specs, 2))
     for t in timings:
@@ -175,11 +195,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         start = f" (+ {t.start_s:.1f} s cluster start)" if t.start_s else ""
         print(f"  {t.label:28s} {t.runs_per_min:6.1f} runs/min   {t.wall_s:6.1f} s{start:24s} "
               f"CPU use {cores} cores   peak memory per worker {peak}")
-    one, two = timings[0], timings[1]
+    one, two, one_core = timings[0], timings[1], timings[2]
     print(f"  scaling 1 -> 2 workers       {two.runs_per_min / (2 * one.runs_per_min):6.2f}        "
-          f"(speed-up {two.runs_per_min / one.runs_per_min:.2f}x)")
+          f"(speed-up {two.runs_per_min / one.runs_per_min:.2f}x; the lone worker renders on both cores)")
+    print(f"  scaling, one core per worker {two.runs_per_min / (2 * one_core.runs_per_min):6.2f}        "
+          f"(speed-up {two.runs_per_min / one_core.runs_per_min:.2f}x over one worker on one core)")
     if not args.no_ray:
-        ray = timings[2]
+        ray = timings[3]
         extra_s = ray.start_s + ray.wall_s - two.wall_s
         print(f"  Ray overhead vs local pool   {extra_s:+6.1f} s      ({100 * extra_s / two.wall_s:+.0f}% of the pool's "
               f"{two.wall_s:.1f} s; {extra_s / ray.runs:+.2f} s per run)")

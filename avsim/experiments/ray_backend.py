@@ -66,8 +66,11 @@ def session(address: str | None, workers: int | None) -> Iterator[Any]:
     if address is None:
         if workers is None or workers < 1:
             raise ConfigError(f"a local Ray cluster needs workers >= 1, got {workers}")
-        # Its workers inherit this process's environment, MUJOCO_GL included.
-        ray.init(num_cpus=workers, include_dashboard=False)
+        # Its workers inherit this process's environment, MUJOCO_GL included, plus their
+        # share of the cores for the rasteriser (`batch.worker_env`).
+        from avsim.experiments.batch import worker_env
+
+        ray.init(num_cpus=workers, include_dashboard=False, runtime_env={"env_vars": worker_env(workers)})
     else:
         # A remote node has its own environment: send the renderer this driver chose (avsim defaults to EGL).
         env = {"env_vars": {"MUJOCO_GL": os.environ["MUJOCO_GL"]}} if "MUJOCO_GL" in os.environ else None

@@ -51,3 +51,11 @@ class Perception(ABC):
     @abstractmethod
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
         """Detections in `camera`'s view, highest confidence first."""
+
+    def detect_cameras(self, rig: CameraRig, data: mujoco.MjData, cameras: tuple[str, ...]) -> dict[str, list[Detection]]:
+        """`detect` for each camera, in order; implementations may overlap the cameras' work
+        as long as the result is the same."""
+        return {camera: self.detect(rig, data, camera) for camera in cameras}
+
+    def close(self) -> None:
+        """Release what the perception holds (threads, contexts); the default holds nothing."""

@@ -24,7 +24,8 @@ def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo,
     from avsim.sensors.noise import SensorNoise
 
     return DetectorPerception(config.weights_path, config.min_confidence, config.min_box_height_px, config.threads,
-                              SensorNoise(config.sensor_noise_std, seed))
+                              SensorNoise(config.sensor_noise_std, seed),
+                              {"front": config.front_roi_px, "side": config.side_roi_px})
 
 
 PERCEPTIONS.add("detector", _detector)

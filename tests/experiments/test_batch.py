@@ -3,7 +3,7 @@
 import pytest
 
 from avsim.errors import ConfigError
-from avsim.experiments.batch import RunSpec, config_hash, execute, failed_record, run_batch
+from avsim.experiments.batch import RunSpec, config_hash, execute, failed_record, run_batch, worker_env
 from avsim.loop import run_config
 from helpers import make_config
 
@@ -69,3 +69,12 @@ def test_worker_processes_give_the_records_of_one_process():
     strip = lambda records: [{k: v for k, v in r.items() if k != "wall_s"} for r in records]  # noqa: E731
     assert strip(pooled) == strip(in_process)
     assert in_process[0]["result"] != in_process[1]["result"]  # the seeds really differ
+
+
+def test_each_worker_renders_on_its_share_of_the_cores(monkeypatch):
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    assert worker_env(2) == {"LP_NUM_THREADS": "2"}
+    assert worker_env(8) == {"LP_NUM_THREADS": "1"}
+    monkeypatch.setenv("LP_NUM_THREADS", "3")  # the user's own setting wins
+    assert worker_env(2) == {}

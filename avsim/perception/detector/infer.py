@@ -2,7 +2,8 @@
 
 Per frame: letterbox (identity for 640x480 at the deployed size) -> fused network in
 channels-last memory under `torch.inference_mode()` -> decode + OpenCV NMS -> boxes mapped
-back to image pixels and clipped to the image. Uses min(2, cpu count) torch threads
+back to image pixels and clipped to the image. With a region of interest, the network runs on
+a crop around it (`roi`) and only the region's cells are decoded. Uses min(2, cpu count) torch threads
 (a process-wide torch setting; pass num_threads=1 when another busy process shares the
 two cores: then one thread is faster, see `model`).
 """
@@ -16,8 +17,9 @@ import numpy as np
 import torch
 
 from avsim.perception.base import Detection, touches_border
-from avsim.perception.detector.letterbox import Letterbox, letterbox
+from avsim.perception.detector.letterbox import Letterbox, fit, letterbox, to_tensor
 from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode
+from avsim.perception.detector.roi import clip_region, crop_for
 from avsim.perception.detector.weights import load_weights
 
 DEFAULT_CONF_THRESHOLD = 0.3
@@ -60,10 +62,27 @@ class SignDetectorRunner:
         return [self._to_detections(det, box, image.shape[1], image.shape[0], camera)
                 for det, (_, box), image in zip(detections, letterboxed, images_rgb)]
 
-    def detect(self, image_rgb: np.ndarray, camera: str, conf_threshold: float | None = None) -> list[Detection]:
-        """Detections in one (H, W, 3) uint8 RGB image, highest confidence first; boxes in image pixels."""
-        tensor, box = letterbox(image_rgb, self.input_size)
+    def detect(self, image_rgb: np.ndarray, camera: str, conf_threshold: float | None = None,
+               region_px: tuple[int, int, int, int] | None = None) -> list[Detection]:
+        """Detections in one (H, W, 3) uint8 RGB image, highest confidence first; boxes in image pixels.
+
+        region_px: if given, (x0, y0, x1, y1) [image px]: only boxes whose network cells are
+        centred inside it are reported. When the image is the network's own input size, the
+        network then runs on a crop around the region only (`roi.crop_for`), with the same
+        scores and boxes as on the whole image, bit for bit.
+        """
+        image_h, image_w = image_rgb.shape[:2]
+        crop = None if region_px is None else crop_for(region_px, image_w, image_h)
+        if crop is not None and fit(image_w, image_h, self.input_size).is_identity(image_w, image_h):
+            x0, y0, x1, y1 = crop
+            tensor, box, origin = to_tensor(image_rgb[y0:y1, x0:x1]), fit(image_w, image_h, self.input_size), (x0, y0)
+            region_in = tuple(float(v) for v in clip_region(region_px, image_w, image_h))
+        else:
+            tensor, box = letterbox(image_rgb, self.input_size)
+            origin = (0, 0)
+            region_in = None if region_px is None else tuple(box.to_input(np.array(clip_region(region_px, image_w, image_h)))[0])
         threshold = self.conf_threshold if conf_threshold is None else conf_threshold
         with torch.inference_mode():
-            det = decode(self.model(tensor.unsqueeze(0)), threshold, self.model.strides, self.iou_threshold, self.max_detections)[0]
-        return self._to_detections(det, box, image_rgb.shape[1], image_rgb.shape[0], camera)
+            det = decode(self.model(tensor.unsqueeze(0)), threshold, self.model.strides, self.iou_threshold,
+                         self.max_detections, origin_px=origin, region_px=region_in)[0]
+        return self._to_detections(det, box, image_w, image_h, camera)

@@ -43,20 +43,32 @@ def nms(boxes_xyxy: np.ndarray | torch.Tensor, scores: np.ndarray | torch.Tensor
 
 def decode(outputs: list[torch.Tensor], conf_threshold: float, strides: tuple[int, ...] = STRIDES,
            iou_threshold: float = IOU_THRESHOLD, max_detections: int = MAX_DETECTIONS,
-           pre_nms_top_k: int = PRE_NMS_TOP_K) -> list[torch.Tensor]:
+           pre_nms_top_k: int = PRE_NMS_TOP_K, origin_px: tuple[int, int] = (0, 0),
+           region_px: tuple[float, float, float, float] | None = None) -> list[torch.Tensor]:
     """Detections per image after score threshold and NMS.
 
     outputs: the model's per-stride maps, each (B, 1 + C + 4, H_s, W_s).
-    Returns B tensors (D, 6): x0, y0, x1, y1 [input px], score, class index; score-sorted,
+    origin_px: where the maps' input starts in the input frame [px]: (0, 0) for a whole
+    input, a crop's corner for a crop (`roi`). Boxes come out in the frame's pixels, computed
+    exactly as the whole frame's cells would be.
+    region_px: if given, (x0, y0, x1, y1) [frame px]: only cells whose centres lie inside it
+    may become detections.
+    Returns B tensors (D, 6): x0, y0, x1, y1 [frame px], score, class index; score-sorted,
     D <= max_detections. Only the `pre_nms_top_k` best cells above `conf_threshold` enter NMS.
     """
     preds, centres, cell_strides = flatten_outputs([o.detach().float().cpu() for o in outputs], strides)
+    if origin_px != (0, 0):
+        centres = centres + torch.tensor(origin_px, dtype=centres.dtype)  # integers: exact in float32
+    candidate = torch.ones(centres.shape[0], dtype=torch.bool)
+    if region_px is not None:
+        x0, y0, x1, y1 = region_px
+        candidate = (centres[:, 0] >= x0) & (centres[:, 0] < x1) & (centres[:, 1] >= y0) & (centres[:, 1] < y1)
     num_classes = preds.shape[-1] - 5
     class_prob, class_idx = torch.sigmoid(preds[..., 1:1 + num_classes]).max(dim=-1)
     scores = torch.sigmoid(preds[..., 0]) * class_prob  # (B, N)
     results = []
     for b in range(preds.shape[0]):
-        cells = torch.nonzero(scores[b] > conf_threshold).squeeze(1)
+        cells = torch.nonzero((scores[b] > conf_threshold) & candidate).squeeze(1)
         if cells.numel() > pre_nms_top_k:
             cells = cells[torch.topk(scores[b, cells], pre_nms_top_k).indices]
         boxes = decode_boxes(preds[b, cells, 1 + num_classes:], centres[cells], cell_strides[cells])

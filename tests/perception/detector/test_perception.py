@@ -1,10 +1,13 @@
 """The shipped detector as the car's perception: boxes on fresh renders, bad weights, closed-loop stops."""
 
+import functools
+
 import pytest
 
 from avsim import cli
 from avsim.config import PerceptionConfig, SimConfig, with_overrides
 from avsim.loop import ClosedLoop
+from avsim.perception.base import Perception
 from avsim.perception.detector.perception import SHIPPED_WEIGHTS
 from avsim.perception.factory import build_perception
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
@@ -68,3 +71,54 @@ def test_detector_policies_stop_before_the_clean_sign(study_run, town, placement
 def test_detector_baseline_stops_a_few_metres_before_the_sign_like_the_study(study_run, town, placement):
     # The study's clean-sign baseline stop was 4.3 m before the sign.
     assert 1.0 <= study_run(town, placement, "baseline", perception="detector").sign_margin_m <= 10.0
+
+
+# ---- the fast path: regions of interest and two cameras at once ---------------------------------
+WHOLE_FRAME = {"front_roi_px": [0, 0, 640, 480], "side_roi_px": [0, 0, 640, 480]}
+
+
+def _sequential(loop: ClosedLoop) -> ClosedLoop:
+    """Detect one camera after the other on this thread, as before the fast path."""
+    loop.perception.detect_cameras = functools.partial(Perception.detect_cameras, loop.perception)
+    return loop
+
+
+def _stop_detections(loop: ClosedLoop, threshold: float) -> list[list[tuple]]:
+    return [[(d.camera, d.confidence, d.box_xyxy_px) for d in r.detections if d.class_name == "stop_sign" and d.confidence >= threshold]
+            for r in loop.records]
+
+
+def test_two_cameras_at_once_detect_exactly_what_one_after_the_other_does():
+    config = with_overrides(SimConfig(), {"policy": {"name": "side_camera"}, "perception": {"sensor_noise_std": 2.0}})
+    loops = [ClosedLoop(config), _sequential(ClosedLoop(config))]
+    try:
+        for loop in loops:  # 45 m before the line at 20 m/s: both cameras see the sign
+            loop.vehicle.place(loop.scene.stop_line_x_m - 45.0 - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 20.0)
+            for _ in range(30):
+                loop.step()
+        fast, slow = ([r.detections for r in loop.records] for loop in loops)
+    finally:
+        for loop in loops:
+            loop.close()
+    assert fast == slow
+    assert any(d.camera == "side" and d.class_name == "stop_sign" for dets in fast for d in dets)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sign,town,placement", [("clean", t, p) for t, p in CELLS] + [("yang", t, "standard") for t in TOWNS.names()])
+def test_fast_path_stops_where_the_whole_frame_one_camera_at_a_time_path_stops(sign, town, placement):
+    # Before: every camera searched whole, one after the other. After: the default regions
+    # of interest, two cameras at once. `combined` uses both cameras and the box height.
+    overrides = {"scenario": {"town": town, "placement": placement, "sign": sign}, "policy": {"name": "combined"},
+                 "perception": {"sensor_noise_std": 2.0}}
+    fast = ClosedLoop(with_overrides(SimConfig(), overrides))
+    before = _sequential(ClosedLoop(with_overrides(SimConfig(), {**overrides, "perception": {"sensor_noise_std": 2.0, **WHOLE_FRAME}})))
+    try:
+        results = [loop.run() for loop in (fast, before)]
+    finally:
+        fast.close()
+        before.close()
+    assert results[0].sign_margin_m == results[1].sign_margin_m and results[0].outcome == results[1].outcome
+    assert [r.x_m for r in fast.records] == [r.x_m for r in before.records]
+    threshold = fast.config.policy.conf_threshold
+    assert _stop_detections(fast, threshold) == _stop_detections(before, threshold)
