@@ -112,7 +112,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from avsim.experiments.reproduce import reproduce
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
-    out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress)
+    out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
+                    backend=args.backend, address=args.address)
     print((out / "report.md").read_text())
     print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
     return 0
@@ -325,7 +326,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
     rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
-    rep.add_argument("--workers", type=int, help="runs at once in worker processes (default: one per core)")
+    rep.add_argument("--workers", type=int, help="runs at once: worker processes, or the local Ray cluster's CPUs "
+                                                  "(default: one per core); with --address, at most this many in flight")
+    rep.add_argument("--backend", choices=("local", "ray"), default="local",
+                     help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
+    rep.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     rep.add_argument("--out", default="results", help="folder in which the timestamped results folder is made")
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")

@@ -126,15 +126,18 @@ def failed_record(spec: RunSpec, error: str) -> dict[str, Any]:
 
 
 def check_backend(backend: str, address: str | None = None) -> None:
-    """Raise a one-line ConfigError for an unknown backend, an address without Ray, or Ray not installed."""
+    """Raise a one-line ConfigError for an unknown backend, an address without Ray, Ray not
+    installed, or no Ray cluster at the address."""
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
     if address is not None and backend != "ray":
         raise ConfigError(f"an address ('{address}') is a Ray cluster's; it needs the ray backend (--backend ray)")
     if backend == "ray":
-        from avsim.experiments.ray_backend import require_ray
+        from avsim.experiments.ray_backend import check_reachable, require_ray
 
         require_ray()
+        if address is not None:
+            check_reachable(address)
 
 
 def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,

@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+import socket
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -49,6 +50,24 @@ def require_ray() -> Any:
     except ImportError:
         raise ConfigError(f"the ray backend needs Ray, which is not installed: {INSTALL_HINT}") from None
     return ray
+
+
+def check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """A one-line ConfigError unless a Ray cluster's port answers at `address` within `timeout_s`.
+
+    Checked before a batch writes anything: `ray.init` itself keeps retrying a dead address for
+    minutes. "auto" (the cluster this machine belongs to) is left to Ray, which fails fast.
+    """
+    if address == "auto":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ConfigError(f"Ray address '{address}' must be auto, HOST:PORT or ray://HOST:PORT")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise ConfigError(f"no Ray cluster answers at '{address}' ({exc.strerror or exc}); start one with "
+                          "'ray start --head' or fix --address") from None
 
 
 @contextlib.contextmanager

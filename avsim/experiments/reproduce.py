@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from avsim.errors import ConfigError
-from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.batch import RunSpec, check_backend, run_batch
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
@@ -77,13 +77,20 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
 
 
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
-              experiment_paths: list[Path] | None = None, progress: bool = True) -> Path:
-    """Run the study's experiments; returns the results folder (see the module docstring)."""
+              experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
+              address: str | None = None) -> Path:
+    """Run the study's experiments; returns the results folder (see the module docstring).
+
+    backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
+    the experiment files and `workers`, before the results folder is made.
+    """
     from avsim.experiments.report import write_report
 
     experiments = load_study(experiment_paths, quick)
-    workers = default_workers() if workers is None else workers
-    if workers < 1:  # checked here too: before the results folder is made
+    check_backend(backend, address)
+    if workers is None and address is None:
+        workers = default_workers()
+    if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
@@ -92,12 +99,16 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     specs = specs_for(experiments, out)
     records = run_batch(specs, workers=workers, root=out, on_record=JsonlWriter(out / "runs.jsonl").append,
-                        progress=progress, description="reproduce")
+                        progress=progress, description="reproduce", backend=backend, address=address)
     # Finishing order depends on the workers; the file ends in spec order, the same every time.
     rewrite(out / "runs.jsonl", records)
     wall_s = time.perf_counter() - started
     manifest = {
-        "command": "avsim reproduce" + (" --quick" if quick else ""),
+        "command": " ".join(part for part in ("avsim reproduce", "--quick" if quick else "",
+                                              f"--backend {backend}" if backend != "local" else "",
+                                              f"--address {address}" if address else "") if part),
+        "backend": backend,
+        "address": address,
         "started_at": started_at.isoformat(timespec="seconds"),
         "wall_s": round(wall_s, 1),
         "workers": workers,

@@ -2,7 +2,8 @@
 
 Reports, as markdown plus a PNG plot:
 - AP at IoU 0.5 per class (all-point interpolation);
-- stop-sign recall and mean confidence per distance bin (front camera, target stop signs);
+- stop-sign recall, with its 95% Wilson score interval, and mean confidence per distance bin
+  (front camera, target stop signs): a bin of 20 signs cannot tell 0.95 from 0.90;
 - false positives per 100 sign-free frames, at the braking threshold;
 - median relative error of the pinhole distance from detected boxes, per distance bin.
 
@@ -25,6 +26,8 @@ from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60))
+# The range over which the shipped model's recall target (>= 0.95) is stated, pooled.
+TARGET_RANGE_M = (10, 45)
 STOP_SIGN_HEIGHT_M = 0.762
 
 Detect = Callable[[np.ndarray, str], list[Detection]]
@@ -41,6 +44,10 @@ class _ClassTally:
 class EvalReport:
     ap50: dict[str, float]
     recall_by_bin: dict[str, float]
+    recall_ci95_by_bin: dict[str, tuple[float, float]]
+    target_range_recall: float  # pooled over TARGET_RANGE_M
+    target_range_recall_ci95: tuple[float, float]
+    target_range_count: int
     mean_conf_by_bin: dict[str, float]
     count_by_bin: dict[str, int]
     fp_per_100_empty: float
@@ -48,6 +55,20 @@ class EvalReport:
     pinhole_median_rel_err_by_bin: dict[str, float]
     conf_threshold: float
     n_images: int
+
+
+def wilson_interval(hits: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval (Wilson, JASA 1927) of a proportion hits / n; (nan, nan) for n = 0.
+
+    Unlike the normal approximation it stays inside [0, 1] and is sensible at 0 or n hits,
+    which is where a recall near 1 lives.
+    """
+    if n == 0:
+        return float("nan"), float("nan")
+    p = hits / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
 
 
 def _bin_name(lo: float, hi: float) -> str:
@@ -65,6 +86,7 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
     tallies = {cls: _ClassTally() for cls in SIGN_CLASSES}
     f_px = CameraConfig().f_px
     per_bin_conf: dict[str, list[float]] = {_bin_name(*b): [] for b in DIST_BINS_M}
+    target_range_conf: list[float] = []
     per_bin_pinhole: dict[str, list[float]] = {_bin_name(*b): [] for b in DIST_BINS_M}
     false_positives, n_empty = 0, 0
     for record in tqdm(records, desc=f"evaluating {split}", disable=not progress):
@@ -91,15 +113,22 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
                         best_stop_conf, best_stop_det = det.confidence, det
         meta = record["meta"]
         if meta["camera"] == "front" and meta["target_kind"] == "stop_sign" and "stop_sign" in gt_classes:
+            if TARGET_RANGE_M[0] <= meta["dist_m"] < TARGET_RANGE_M[1]:
+                target_range_conf.append(best_stop_conf)
             for lo, hi in DIST_BINS_M:
                 if lo <= meta["dist_m"] < hi:
                     per_bin_conf[_bin_name(lo, hi)].append(best_stop_conf)
                     if best_stop_det is not None and best_stop_conf >= conf_threshold and not best_stop_det.truncated:
                         estimate = pinhole_distance_m(STOP_SIGN_HEIGHT_M, f_px, best_stop_det.height_px)
                         per_bin_pinhole[_bin_name(lo, hi)].append(abs(estimate - meta["dist_m"]) / meta["dist_m"])
+    target_hits = int(np.sum(np.asarray(target_range_conf) >= conf_threshold))
     return EvalReport(
         ap50={cls: average_precision(np.asarray(t.scores), np.asarray(t.matched, bool), t.n_ground_truth) for cls, t in tallies.items()},
         recall_by_bin={b: float(np.mean(np.asarray(v) >= conf_threshold)) if v else float("nan") for b, v in per_bin_conf.items()},
+        recall_ci95_by_bin={b: wilson_interval(int(np.sum(np.asarray(v) >= conf_threshold)), len(v)) for b, v in per_bin_conf.items()},
+        target_range_recall=target_hits / len(target_range_conf) if target_range_conf else float("nan"),
+        target_range_recall_ci95=wilson_interval(target_hits, len(target_range_conf)),
+        target_range_count=len(target_range_conf),
         mean_conf_by_bin={b: float(np.mean(v)) if v else float("nan") for b, v in per_bin_conf.items()},
         count_by_bin={b: len(v) for b, v in per_bin_conf.items()},
         fp_per_100_empty=100.0 * false_positives / n_empty if n_empty else float("nan"),
@@ -122,7 +151,10 @@ def write_report(report: EvalReport, out_dir: str | Path, title: str) -> tuple[P
     bins = list(report.recall_by_bin)
     centres = [(lo + hi) / 2 for lo, hi in DIST_BINS_M]
     fig, ax = plt.subplots(figsize=(6, 3.5), dpi=120)
-    ax.plot(centres, [report.recall_by_bin[b] for b in bins], "o-", label=f"recall (conf >= {report.conf_threshold})")
+    recall = np.array([report.recall_by_bin[b] for b in bins])
+    interval = np.array([report.recall_ci95_by_bin[b] for b in bins]).T  # (2, bins): low, high
+    ax.errorbar(centres, recall, yerr=np.abs(interval - recall), fmt="o-", capsize=3,
+                label=f"recall (conf >= {report.conf_threshold}), 95% interval")
     ax.plot(centres, [report.mean_conf_by_bin[b] for b in bins], "s--", label="mean stop-sign confidence")
     ax.axhline(0.75, color="grey", lw=0.8, ls=":", label="study's clean-sign confidence (0.75)")
     ax.set_xlabel("distance to the stop sign [m]")
@@ -138,10 +170,15 @@ def write_report(report: EvalReport, out_dir: str | Path, title: str) -> tuple[P
     lines = [f"# {title}", "", f"{report.n_images} held-out images (town layout seed 0, sun elevation 40-55 deg); "
              f"confidence threshold {report.conf_threshold}.", "", "| class | AP@0.5 |", "|---|---|"]
     lines += [f"| {cls} | {ap:.3f} |" for cls, ap in report.ap50.items()]
-    lines += ["", "| distance | stop signs | recall | mean confidence | median pinhole error |", "|---|---|---|---|---|"]
+    lines += ["", "| distance | stop signs | recall | recall, 95% interval | mean confidence | median pinhole error |",
+              "|---|---|---|---|---|---|"]
     for b in bins:
-        lines.append(f"| {b} | {report.count_by_bin[b]} | {report.recall_by_bin[b]:.3f} | {report.mean_conf_by_bin[b]:.3f} | "
-                     f"{100 * report.pinhole_median_rel_err_by_bin[b]:.1f}% |")
+        lo, hi = report.recall_ci95_by_bin[b]
+        lines.append(f"| {b} | {report.count_by_bin[b]} | {report.recall_by_bin[b]:.3f} | {lo:.3f}–{hi:.3f} | "
+                     f"{report.mean_conf_by_bin[b]:.3f} | {100 * report.pinhole_median_rel_err_by_bin[b]:.1f}% |")
+    lo, hi = report.target_range_recall_ci95
+    lines.append(f"| {TARGET_RANGE_M[0]}-{TARGET_RANGE_M[1]} m (target range, pooled) | {report.target_range_count} | "
+                 f"{report.target_range_recall:.3f} | {lo:.3f}–{hi:.3f} | | |")
     lines += ["", f"False positives at the threshold: {report.fp_per_100_empty:.2f} per 100 sign-free frames "
               f"({report.n_empty} frames).", "", f"![recall and confidence against distance]({plot_path.name})", ""]
     report_path = out / "report.md"

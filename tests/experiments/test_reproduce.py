@@ -110,3 +110,13 @@ def test_zero_workers_is_refused_before_a_results_folder_is_made(tmp_path, capsy
     code = cli.main(["reproduce", "--experiments", str(experiment), "--workers", "0", "--out", str(tmp_path / "results")])
     assert code == 2 and "--workers" in capsys.readouterr().err
     assert not (tmp_path / "results").exists()
+
+
+def test_reproduce_on_a_dead_ray_address_is_refused_before_a_results_folder_is_made(tmp_path, capsys):
+    pytest.importorskip("ray")
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3)
+    code = cli.main(["reproduce", "--experiments", str(experiment), "--backend", "ray", "--address", "127.0.0.1:1",
+                     "--out", str(tmp_path / "results")])
+    assert code == 2 and "no Ray cluster answers" in capsys.readouterr().err
+    assert not (tmp_path / "results").exists()

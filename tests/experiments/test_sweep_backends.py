@@ -63,3 +63,15 @@ def test_an_address_without_the_ray_backend_is_rejected_before_anything_runs(tmp
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "--backend ray" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("address, expected", [("127.0.0.1:1", "no Ray cluster answers at '127.0.0.1:1'"),
+                                               ("ray://127.0.0.1:1", "no Ray cluster answers"),
+                                               ("nowhere", "must be auto, HOST:PORT or ray://HOST:PORT")])
+def test_a_dead_or_malformed_address_is_one_line_before_anything_is_written(tmp_path, capsys, address, expected):
+    pytest.importorskip("ray")
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--backend", "ray", "--address", address, "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and expected in err
+    assert not out.exists()

@@ -45,6 +45,8 @@ def test_perfect_detections_score_ap_one_full_recall_and_no_false_positives(tiny
     assert np.isnan(report.ap50["speed_limit"])
     assert report.recall_by_bin["35-45 m"] == 1.0 and report.recall_by_bin["5-15 m"] == 1.0
     assert report.count_by_bin["35-45 m"] == 1 and report.count_by_bin["15-25 m"] == 0
+    # the 10-45 m target range pools the signs at 12 and 40 m
+    assert report.target_range_count == 2 and report.target_range_recall == 1.0
     assert report.fp_per_100_empty == 0.0 and report.n_empty == 1
 
 
@@ -58,6 +60,7 @@ def test_misses_low_confidence_and_false_positives_are_counted(tiny_split):
     report = evaluate(_replay(scripted), tiny_split, conf_threshold=0.5, progress=False)
     assert report.recall_by_bin["35-45 m"] == 0.0 and report.mean_conf_by_bin["35-45 m"] == pytest.approx(0.3)
     assert report.recall_by_bin["5-15 m"] == 0.0
+    assert report.target_range_recall == 0.0 and report.target_range_recall_ci95[0] == 0.0
     assert report.fp_per_100_empty == 100.0
     assert report.ap50["stop_sign"] < 0.5 and report.ap50["yield"] == 0.0
 
@@ -74,3 +77,17 @@ def test_report_writes_markdown_and_plot(tiny_split, tmp_path):
     report = evaluate(_replay([[], [], [], []]), tiny_split, conf_threshold=0.5, progress=False)
     report_path, plot_path = write_report(report, tmp_path / "eval", "test")
     assert "| stop_sign |" in report_path.read_text() and plot_path.stat().st_size > 1000
+
+
+def test_wilson_interval_matches_the_closed_form_and_stays_in_zero_one():
+    from avsim.perception.evaluation import wilson_interval
+
+    # 19 of 20: centre (0.95 + 1.96^2/40) / (1 + 1.96^2/20), the textbook 0.764-0.991
+    lo, hi = wilson_interval(19, 20)
+    assert lo == pytest.approx(0.7639, abs=1e-3) and hi == pytest.approx(0.9911, abs=1e-3)
+    lo, hi = wilson_interval(20, 20)
+    assert hi == 1.0 and 0.83 < lo < 0.84
+    assert wilson_interval(0, 10)[0] == 0.0
+    assert all(np.isnan(wilson_interval(0, 0)))
+    # more samples, narrower interval around the same proportion
+    assert np.diff(wilson_interval(950, 1000)) < np.diff(wilson_interval(19, 20))

@@ -18,13 +18,14 @@ the stride 2-8 maps, so the net has few layers (23 convs, 1x1 FPN fusions, no CS
 and a ReLU-family activation (SiLU costs ~4x a ReLU per element here).
 
 build_detector() defaults: 0.455 M params (1.8 MB fp32), 1.47 GFLOPs (0.74 GMACs) at 640x480.
-Measured on this machine (2-core AMD EPYC VM, torch 2.13 CPU, 2 threads, fused,
-channels_last, inference_mode; median of 50 frames after warm-up,
-`python -m avsim.perception.detector.bench_latency`), with another process intermittently
-busy: letterbox 0.15 ms + forward 5.4-5.8 ms + decode/NMS 0.5 ms = 6.0-6.6 ms per frame.
-With one core fully taken by another process: 14.4 ms at 2 threads, 10.7 ms at 1 thread.
-512x384 would cost ~4.5 ms forward but shrinks a 12 px sign to 9.6 px; the 12 ms budget
-allows the native size.
+Measured on this machine (2-core AMD EPYC VM, torch 2.13 CPU, fused, channels_last,
+inference_mode; median of 100 frames after warm-up, nothing else running,
+`python -m avsim.perception.detector.bench_latency`): letterbox 0.2 ms + forward 17.3 ms +
+decode/NMS 0.8 ms = 18.4 ms per frame at 1 thread, and 11.4 ms at 2 threads. The forward
+runs at about 85 GFLOP/s on one core, most of what the core's FMA units can do, so the net
+itself has little left to give: the closed loop runs it on a region of interest instead
+(`roi`; 480x384 px for the front camera, 11.9 ms at 1 thread in `avsim bench`).
+A smaller input, 512x384, would shrink a 12 px sign to 9.6 px; the region keeps the native scale.
 """
 
 from __future__ import annotations
