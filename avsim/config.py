@@ -181,10 +181,10 @@ class PerceptionConfig:
     # region plus `detector.roi.CONTEXT_PX` of context instead of the whole frame. Inside the
     # region every score and box equals the whole-frame network's, bit for bit (the context
     # covers the receptive field); non-maximum suppression then runs among the region's boxes.
-    # The defaults hold every stop sign of the study's towns and
-    # placements, which stand right of the road and above the camera: the front camera sees
-    # them right of x = 320 and both cameras above the horizon (y = 240), and the car's own
-    # nose dive under braking only lifts them. (0, 0, width, height) is the whole frame.
+    # The defaults hold every stop sign of the study's towns and placements, which stand right
+    # of the road and above the camera: the front camera sees them right of x = 320 and both
+    # cameras above the horizon (y = 240), and the car's nose dive under braking only lifts
+    # them. (0, 0, width, height) is the whole frame; a region is clipped to the image.
     front_roi_px: tuple[int, int, int, int] = (288, 0, 640, 256)
     side_roi_px: tuple[int, int, int, int] = (0, 0, 640, 256)
 

@@ -195,7 +195,8 @@ def worker_env(workers: int) -> dict[str, str]:
     return {"LP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // max(1, workers)))}
 
 
-def _set_env(env: dict[str, str]) -> None:
+def apply_env(env: dict[str, str]) -> None:
+    """Set `env` in this process's environment: a pool's initializer, before any GL context exists."""
     os.environ.update(env)
 
 
@@ -206,7 +207,7 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> 
             yield index, execute(spec, root)
         return
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_set_env, initargs=(worker_env(workers),)) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=apply_env, initargs=(worker_env(workers),)) as pool:
         futures = {pool.submit(execute, spec, root): index for index, spec in enumerate(specs)}
         try:
             for future in as_completed(futures):

@@ -2,10 +2,10 @@
 
 Per frame: letterbox (identity for 640x480 at the deployed size) -> fused network in
 channels-last memory under `torch.inference_mode()` -> decode + OpenCV NMS -> boxes mapped
-back to image pixels and clipped to the image. With a region of interest, the network runs on
-a crop around it (`roi`) and only the region's cells are decoded. Uses min(2, cpu count) torch threads
-(a process-wide torch setting; pass num_threads=1 when another busy process shares the
-two cores: then one thread is faster, see `model`).
+back to image pixels and clipped to the image. With a region of interest, the network runs
+on a crop around it (`roi`) and only the region's cells are decoded. Uses min(2, cpu count)
+torch threads (a process-wide torch setting; pass num_threads=1 when another busy process
+shares the two cores: then one thread is faster, see `model`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from avsim.perception.base import Detection, touches_border
-from avsim.perception.detector.letterbox import Letterbox, fit, letterbox, to_tensor
+from avsim.perception.detector.letterbox import Letterbox, check_image, fit, letterbox, to_tensor
 from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode
 from avsim.perception.detector.roi import clip_region, crop_for
 from avsim.perception.detector.weights import load_weights
@@ -71,11 +71,13 @@ class SignDetectorRunner:
         network then runs on a crop around the region only (`roi.crop_for`), with the same
         scores and boxes as on the whole image, bit for bit.
         """
+        check_image(image_rgb)
         image_h, image_w = image_rgb.shape[:2]
-        crop = None if region_px is None else crop_for(region_px, image_w, image_h)
-        if crop is not None and fit(image_w, image_h, self.input_size).is_identity(image_w, image_h):
+        box = fit(image_w, image_h, self.input_size)
+        crop = crop_for(region_px, image_w, image_h) if region_px is not None and box.is_identity(image_w, image_h) else None
+        if crop is not None:
             x0, y0, x1, y1 = crop
-            tensor, box, origin = to_tensor(image_rgb[y0:y1, x0:x1]), fit(image_w, image_h, self.input_size), (x0, y0)
+            tensor, origin = to_tensor(image_rgb[y0:y1, x0:x1]), (x0, y0)
             region_in = tuple(float(v) for v in clip_region(region_px, image_w, image_h))
         else:
             tensor, box = letterbox(image_rgb, self.input_size)

@@ -78,9 +78,14 @@ def to_tensor(image: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1).float().mul_(1.0 / 255.0)
 
 
-def letterbox(image_rgb: np.ndarray, input_size: tuple[int, int] = DEPLOY_INPUT_SIZE) -> tuple[torch.Tensor, Letterbox]:
-    """(H, W, 3) uint8 RGB image -> ((3, H_in, W_in) float32 in [0, 1], its Letterbox); input_size is (W_in, H_in)."""
+def check_image(image_rgb: np.ndarray) -> None:
+    """ValueError unless `image_rgb` is an (H, W, 3) uint8 array."""
     if image_rgb.ndim != 3 or image_rgb.shape[2] != 3 or image_rgb.dtype != np.uint8:
         raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got shape {image_rgb.shape} dtype {image_rgb.dtype}")
+
+
+def letterbox(image_rgb: np.ndarray, input_size: tuple[int, int] = DEPLOY_INPUT_SIZE) -> tuple[torch.Tensor, Letterbox]:
+    """(H, W, 3) uint8 RGB image -> ((3, H_in, W_in) float32 in [0, 1], its Letterbox); input_size is (W_in, H_in)."""
+    check_image(image_rgb)
     box = fit(image_rgb.shape[1], image_rgb.shape[0], input_size)
     return to_tensor(warp(image_rgb, box)), box

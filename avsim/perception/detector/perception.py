@@ -37,9 +37,10 @@ class DetectorPerception(Perception):
     interest (x0, y0, x1, y1) [px] (`SignDetectorRunner.detect`); a camera without one is
     searched whole.
 
-    With one torch thread, `detect_cameras` runs the first camera's network on a worker
-    thread while the next camera renders and runs on this one: the two cores work at once,
-    and each network still runs single-threaded, so the scores are the same bit for bit.
+    With one torch thread and several cameras, `detect_cameras` renders every camera first
+    (the rasteriser then has both cores), then runs the last camera's network on this thread
+    while the others run on a worker thread. Each network still runs single-threaded, so the
+    scores are the same bit for bit as one camera after the other.
     """
 
     name = "detector"
