@@ -41,6 +41,16 @@ def default_workers() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
 
 
+def resolve_workers(workers: int | None, address: str | None) -> int | None:
+    """The runs at once for a batch: `workers`, or one per core when neither it nor a Ray
+    cluster address (whose CPUs then decide) is given; a one-line ConfigError below 1."""
+    if workers is None and address is None:
+        workers = default_workers()
+    if workers is not None and workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    return workers
+
+
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False) -> list[Experiment]:
     """The experiments to run; `quick` keeps one seed per cell."""
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in STUDY_EXPERIMENTS]
@@ -88,10 +98,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
 
     experiments = load_study(experiment_paths, quick)
     check_backend(backend, address)
-    if workers is None and address is None:
-        workers = default_workers()
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    workers = resolve_workers(workers, address)
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
     out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))

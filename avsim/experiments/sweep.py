@@ -215,7 +215,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is
     off, or the backend cannot run (Ray not installed).
     """
-    from avsim.experiments.reproduce import _versions, default_workers
+    from avsim.experiments.reproduce import _versions, resolve_workers
     from avsim.experiments.sweep_report import write_sweep_report
 
     check_backend(backend, address)
@@ -225,10 +225,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     if existing and not resume:
         raise ConfigError(f"{results_path} already holds {len(existing)} runs; pass --resume to run only the "
                           f"missing ones, or choose another --out")
-    if workers is None and address is None:
-        workers = default_workers()
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    workers = resolve_workers(workers, address)
 
     runs = sweep.runs()
     specs = sweep.specs()

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from avsim.perception.base import Detection, touches_border
-from avsim.perception.detector.letterbox import Letterbox, check_image, fit, letterbox, to_tensor
+from avsim.perception.detector.letterbox import Letterbox, check_image, fit, letterbox, to_tensor, warp
 from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode
 from avsim.perception.detector.roi import clip_region, crop_for
 from avsim.perception.detector.weights import load_weights
@@ -80,8 +80,7 @@ class SignDetectorRunner:
             tensor, origin = to_tensor(image_rgb[y0:y1, x0:x1]), (x0, y0)
             region_in = tuple(float(v) for v in clip_region(region_px, image_w, image_h))
         else:
-            tensor, box = letterbox(image_rgb, self.input_size)
-            origin = (0, 0)
+            tensor, origin = to_tensor(warp(image_rgb, box)), (0, 0)
             region_in = None if region_px is None else tuple(box.to_input(np.array(clip_region(region_px, image_w, image_h)))[0])
         threshold = self.conf_threshold if conf_threshold is None else conf_threshold
         with torch.inference_mode():
