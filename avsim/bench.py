@@ -12,14 +12,23 @@ import mujoco
 
 from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop, run_config
-from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
 
 
-def _physics_steps_per_s(config: SimConfig, steps: int) -> float:
+def _physics_steps_per_s(config: SimConfig, steps: int, controls: Controls | None = None) -> float:
+    """MuJoCo steps per second of the car in the town: bare `mj_step` (controls None), or
+    through `Vehicle.advance` with the tyre model, anti-lock brakes and traction control
+    running at every step under `controls`."""
     loop = ClosedLoop(config)
-    loop.vehicle.place(-200.0, loop.scene.layout.lane_center_y_m, 0.0, 20.0)
+    loop.vehicle.place(-250.0, loop.scene.layout.lane_center_y_m, 0.0, 25.0)
     start = time.perf_counter()
-    mujoco.mj_step(loop.model, loop.data, nstep=steps)
+    if controls is None:
+        mujoco.mj_step(loop.model, loop.data, nstep=steps)
+    else:
+        substeps = config.loop.substeps
+        for _ in range(steps // substeps):
+            loop.vehicle.apply(controls)
+            loop.vehicle.advance(substeps)
     rate = steps / (time.perf_counter() - start)
     loop.close()
     return rate
@@ -84,12 +93,20 @@ def run_benchmarks(quick: bool = False) -> None:
     frames = 50 if quick else 200
     print(f"avsim bench ({'quick' if quick else 'full'}): {base.camera.width_px}x{base.camera.height_px}, "
           f"physics dt {base.loop.physics_dt_s} s, control dt {base.loop.control_dt_s} s")
-    rate = _physics_steps_per_s(base, 20000 if quick else 100000)
-    print(f"  physics                          {rate:10.0f} steps/s        (target >= 50000)")
+    steps = 20000 if quick else 100000
+    rate = _physics_steps_per_s(base, steps)
+    print(f"  physics                          {rate:10.0f} steps/s        (target >= 50000; bare mj_step, car with suspension)")
+    cruise = _physics_steps_per_s(base, steps // 4, Controls(throttle=0.2))
+    print(f"  physics, cruising                {cruise:10.0f} steps/s        (tyre model and traction control at every step)")
+    braking = _physics_steps_per_s(base, steps // 20, Controls(brake=1.0))
+    print(f"  physics, full brake              {braking:10.0f} steps/s        (tyre model and anti-lock brakes at every step)")
     print(f"  front camera RGB render          {_frames_per_s(base, frames, False):10.1f} frames/s       (target >= 40)")
     print(f"  front camera full segmentation   {_frames_per_s(base, frames, True):10.1f} frames/s       "
           f"({base.camera.seg_supersample}x supersampled, whole image decoded)")
     _closed_loop_rows(base, "oracle", ("town07", "town10"), "target >= 3 for one camera")
+    no_abs = with_overrides(base, {"vehicle": {"abs_enabled": False, "traction_control_enabled": False}})
+    _closed_loop_rows(no_abs, "oracle", ("town07",), "the same run without anti-lock brakes or traction control",
+                      (("one camera, no ABS or TCS", "baseline"),))
     # The runs use perception.threads (1 by default: bit-identical everywhere, and a pool of
     # single-threaded workers fills the cores); 2 threads is what one run alone could use.
     roi = base.perception.front_roi_px
@@ -103,6 +120,9 @@ def run_benchmarks(quick: bool = False) -> None:
     two_threads = with_overrides(base, {"perception": {"threads": 2}})
     _closed_loop_rows(two_threads, "detector", ("town07",) if quick else ("town07", "town10"), target,
                       (("one camera, 2 threads", "baseline"), ("two cameras, 2 threads", "side_camera")))
+    _closed_loop_rows(with_overrides(two_threads, {"vehicle": {"abs_enabled": False, "traction_control_enabled": False}}),
+                      "detector", ("town07",), "the same run without anti-lock brakes or traction control",
+                      (("one camera, 2 threads, no ABS/TCS", "baseline"),))
 
 
 if __name__ == "__main__":

@@ -52,6 +52,9 @@ class ScenarioConfig:
     # Linear fog from fog_start_m to fog_end_m [m] of distance; fog_end_m = 0 means clear air.
     fog_start_m: float = 0.0
     fog_end_m: float = 0.0
+    # Tyre-road friction coefficient (the tyre's peak): dry asphalt 0.9, wet 0.5-0.6, packed
+    # snow about 0.2, ice about 0.1. It is the friction of MuJoCo's tyre-road contacts.
+    road_friction: float = 0.9
 
     def __post_init__(self) -> None:
         _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
@@ -61,30 +64,59 @@ class ScenarioConfig:
         _require(0 <= self.start_jitter_m <= 10, f"scenario.start_jitter_m must be in [0, 10], got {self.start_jitter_m}")
         _require(5 <= self.sun_elevation_deg <= 90, f"scenario.sun_elevation_deg must be in [5, 90], got {self.sun_elevation_deg}")
         _require(0.1 <= self.sun_intensity <= 2.0, f"scenario.sun_intensity must be in [0.1, 2], got {self.sun_intensity}")
+        _require(0.05 <= self.road_friction <= 1.5,
+                 f"scenario.road_friction must be in [0.05, 1.5] (dry 0.9, wet 0.5, snow 0.2), got {self.road_friction}")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
                  f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
 
 
 @dataclass(frozen=True)
 class VehicleConfig:
-    """Powertrain, brakes and resistances. Mass and geometry live in models/car.xml."""
+    """Powertrain, brakes, anti-lock control, suspension, tyre and resistances.
+
+    Mass and geometry live in models/car.xml; the road's friction is the scenario's.
+    """
 
     max_drive_torque_nm: float = 900.0  # per driven (rear) wheel
-    # Per-wheel brake torque at brake = 1. The 60/40 front bias keeps the rear wheels
-    # rolling at full brake, as ABS would, giving about 8.6 m/s^2 on dry asphalt.
-    max_brake_torque_front_nm: float = 1350.0
-    max_brake_torque_rear_nm: float = 900.0
+    # Total brake force at brake = 1 as a multiple of the car's weight. At 1.0 a brake command
+    # b asks the tyres for b * 9.81 m/s^2, the a_max of the study's b = a / a_max law; on a dry
+    # road the tyres give less than that, and the anti-lock controller takes over.
+    brake_force_at_full_g: float = 1.0
+    # Share of the brake force on the front axle. Under a 0.9 g stop about two thirds of the
+    # car's weight rests on the front wheels, so real cars bias their brakes forward.
+    brake_balance_front: float = 0.70
+    # Time for the hydraulics to build from no brake to full brake [s]; release is immediate.
+    brake_rise_time_s: float = 0.15
+    # Anti-lock brakes and traction control: each wheel's slip is held near abs_target_slip.
+    abs_enabled: bool = True
+    traction_control_enabled: bool = True
+    abs_target_slip: float = 0.10
+    # Body bounce: undamped ride frequency [Hz] and damping ratio of each corner's spring.
+    suspension_frequency_hz: float = 1.4
+    suspension_damping_ratio: float = 0.45
+    # Tyre friction against slip: flat up to the peak slip, then falling linearly to this share
+    # of the road's friction for a locked wheel (avsim/vehicle/tyre.py).
+    tyre_peak_slip: float = 0.15
+    tyre_sliding_ratio: float = 0.75
     rolling_resistance_coeff: float = 0.012
     drag_area_m2: float = 0.65  # Cd * frontal area of a sedan (0.29 * 2.2 m^2)
     air_density_kgpm3: float = 1.2
-    tyre_friction: float = 1.0  # dry asphalt
 
     def __post_init__(self) -> None:
-        for name in ("max_drive_torque_nm", "max_brake_torque_front_nm", "max_brake_torque_rear_nm"):
+        for name in ("max_drive_torque_nm", "brake_force_at_full_g", "brake_rise_time_s"):
             _require(getattr(self, name) > 0, f"vehicle.{name} must be > 0, got {getattr(self, name)}")
         for name in ("rolling_resistance_coeff", "drag_area_m2", "air_density_kgpm3"):
             _require(getattr(self, name) >= 0, f"vehicle.{name} must be >= 0, got {getattr(self, name)}")
-        _require(0.1 <= self.tyre_friction <= 2.0, f"vehicle.tyre_friction must be in [0.1, 2], got {self.tyre_friction}")
+        _require(self.brake_force_at_full_g <= 3, f"vehicle.brake_force_at_full_g must be in (0, 3], got {self.brake_force_at_full_g}")
+        _require(self.brake_rise_time_s <= 2, f"vehicle.brake_rise_time_s must be in (0, 2] s, got {self.brake_rise_time_s}")
+        _require(0 <= self.brake_balance_front <= 1, f"vehicle.brake_balance_front must be in [0, 1], got {self.brake_balance_front}")
+        _require(0.02 <= self.abs_target_slip <= 0.5, f"vehicle.abs_target_slip must be in [0.02, 0.5], got {self.abs_target_slip}")
+        _require(0.5 <= self.suspension_frequency_hz <= 4,
+                 f"vehicle.suspension_frequency_hz must be in [0.5, 4] Hz (a sedan rides at 1.2-1.5), got {self.suspension_frequency_hz}")
+        _require(0.05 <= self.suspension_damping_ratio <= 2,
+                 f"vehicle.suspension_damping_ratio must be in [0.05, 2], got {self.suspension_damping_ratio}")
+        _require(0.02 <= self.tyre_peak_slip <= 0.5, f"vehicle.tyre_peak_slip must be in [0.02, 0.5], got {self.tyre_peak_slip}")
+        _require(0.2 <= self.tyre_sliding_ratio <= 1, f"vehicle.tyre_sliding_ratio must be in [0.2, 1], got {self.tyre_sliding_ratio}")
 
 
 @dataclass(frozen=True)
@@ -217,10 +249,10 @@ class PolicyConfig:
     stop_margin_m: float = 2.0
     # The autopilot knows the line from the map and aims this far short of it.
     autopilot_stop_margin_m: float = 0.5
-    # The autopilot starts braking when stopping at the line needs this deceleration,
-    # and maps a deceleration to a brake level with the car's full-brake figure.
-    autopilot_decel_mps2: float = 6.0
-    autopilot_full_brake_mps2: float = 8.6
+    # The autopilot starts braking when stopping at the line needs this share of the car's
+    # full-brake deceleration, measured at the run's road friction (avsim.vehicle.brake_test),
+    # and maps a deceleration to a brake level with that measured figure.
+    autopilot_decel_fraction: float = 0.7
 
     def __post_init__(self) -> None:
         _require(0 < self.conf_threshold < 1, f"policy.conf_threshold must be in (0, 1), got {self.conf_threshold}")
@@ -228,8 +260,8 @@ class PolicyConfig:
         _require(0.6 <= self.brake_multiplier <= 1.0, f"policy.brake_multiplier (M) must be in [0.6, 1], got {self.brake_multiplier}")
         _require(self.a_max_mps2 > 0, f"policy.a_max_mps2 must be > 0, got {self.a_max_mps2}")
         _require(self.sign_height_m > 0, f"policy.sign_height_m must be > 0, got {self.sign_height_m}")
-        _require(0 < self.autopilot_decel_mps2 < self.autopilot_full_brake_mps2,
-                 f"policy.autopilot_decel_mps2 must be in (0, autopilot_full_brake_mps2), got {self.autopilot_decel_mps2}")
+        _require(0.1 <= self.autopilot_decel_fraction <= 1,
+                 f"policy.autopilot_decel_fraction must be in [0.1, 1], got {self.autopilot_decel_fraction}")
         _require(0 <= self.stop_margin_m <= 10, f"policy.stop_margin_m must be in [0, 10], got {self.stop_margin_m}")
         _require(0 <= self.autopilot_stop_margin_m <= 10,
                  f"policy.autopilot_stop_margin_m must be in [0, 10], got {self.autopilot_stop_margin_m}")

@@ -12,6 +12,7 @@ hold), as a real ECU's would be between sensor frames.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -26,6 +27,7 @@ from avsim.metrics import STOPPED_SPEED_MPS, RunResult, StepRecord, summarise
 from avsim.perception.base import Detection
 from avsim.perception.factory import build_perception
 from avsim.sensors.camera import CameraRig
+from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls, Vehicle
 from avsim.world.scene import build_scene
 
@@ -52,6 +54,9 @@ class ClosedLoop:
             front_f_px=self.rig.intrinsics("front").f_px,
             cam_to_bumper_m=FRONT_BUMPER_X_M - cam_x_m,
             control_dt_s=config.loop.control_dt_s,
+            # Measured on a test track at this run's road friction and speed, not assumed.
+            full_brake_decel_mps2=full_brake_decel_mps2(config.vehicle, config.scenario.road_friction,
+                                                        config.scenario.speed_kmh / 3.6, config.loop.physics_dt_s),
         )
         self.policy = policy_factory(config.policy, context)
         self.cruise = SpeedController(config.scenario.speed_kmh / 3.6)
@@ -86,11 +91,12 @@ class ClosedLoop:
         controls = self._controls(decision, speed)
         self.vehicle.apply(controls)
         record = self._record(controls, decision, detections)  # state at sensing time
-        # N physics steps
-        mujoco.mj_step(self.model, self.data, nstep=self.config.loop.substeps)
+        # N physics steps (tyres, anti-lock brakes and traction control act at each)
+        self.vehicle.advance(self.config.loop.substeps)
         self.time_s = round(self.time_s + self.config.loop.control_dt_s, 9)
         self._check_physics()
-        # record
+        # record: the step's largest braking slip is known only once its physics has run
+        record = dataclasses.replace(record, max_brake_slip=self.vehicle.last_max_brake_slip)
         self.records.append(record)
         return record
 
@@ -118,6 +124,7 @@ class ClosedLoop:
         return StepRecord(
             time_s=self.time_s, x_m=float(xy[0]), y_m=float(xy[1]), yaw_rad=self.vehicle.yaw_rad(),
             speed_mps=self.vehicle.speed_mps(), throttle=controls.throttle, brake=controls.brake, steer_rad=controls.steer_rad,
+            pitch_rad=self.vehicle.pitch_rad(),
             stop_line_dist_m=self.scene.stop_line_x_m - bumper_x,
             sign_dist_m=self.scene.stop_sign.base_pos_m[0] - bumper_x,
             est_stop_line_dist_m=decision.est_stop_line_dist_m,

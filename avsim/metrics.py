@@ -37,6 +37,9 @@ class StepRecord:
     required_decel_mps2: float | None
     top_stop_conf: float  # best stop-sign confidence over the policy's cameras, 0 if none
     detections: tuple[Detection, ...]
+    pitch_rad: float = 0.0  # body pitch, nose down +
+    # Largest wheel slip during the step's physics while braking above 5 m/s (None: no such moment).
+    max_brake_slip: float | None = None
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,9 @@ class RunResult:
     mean_decel_mps2: float | None  # speed at brake / time to stop
     speed_at_brake_mps: float | None
     sim_time_s: float
+    # Largest longitudinal slip of any wheel while braking above 5 m/s; None if the car never did.
+    max_brake_slip: float | None = None
+    peak_pitch_deg: float = 0.0  # largest nose-down pitch of the body over the run
 
     @property
     def stopped_before_sign(self) -> bool:
@@ -98,6 +104,8 @@ def summarise(records: list[StepRecord], last: StepRecord, sign_xy_m: tuple[floa
         mean_decel_mps2=(brake_start.speed_mps / time_to_stop) if time_to_stop else None,
         speed_at_brake_mps=brake_start.speed_mps if brake_start else None,
         sim_time_s=last.time_s,
+        max_brake_slip=max((r.max_brake_slip for r in records if r.max_brake_slip is not None), default=None),
+        peak_pitch_deg=math.degrees(max(r.pitch_rad for r in (*records, last))),
     )
 
 

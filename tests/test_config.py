@@ -103,7 +103,14 @@ def test_with_overrides_rejects_non_finite_floats(bad):
         lambda: ScenarioConfig(sun_elevation_deg=0.0),
         lambda: VehicleConfig(max_drive_torque_nm=0.0),
         lambda: VehicleConfig(drag_area_m2=-0.1),
-        lambda: VehicleConfig(tyre_friction=3.0),
+        lambda: ScenarioConfig(road_friction=3.0),
+        lambda: ScenarioConfig(road_friction=0.0),
+        lambda: VehicleConfig(brake_balance_front=1.2),
+        lambda: VehicleConfig(brake_rise_time_s=0.0),
+        lambda: VehicleConfig(abs_target_slip=0.9),
+        lambda: VehicleConfig(suspension_frequency_hz=0.1),
+        lambda: VehicleConfig(suspension_damping_ratio=0.0),
+        lambda: VehicleConfig(tyre_sliding_ratio=1.5),
         lambda: CameraConfig(width_px=32),
         lambda: CameraConfig(height_px=5000),
         lambda: CameraConfig(fovy_deg=0.5),
@@ -122,7 +129,7 @@ def test_with_overrides_rejects_non_finite_floats(bad):
         lambda: PolicyConfig(conf_threshold=1.0),
         lambda: PolicyConfig(baseline_brake=0.0),
         lambda: PolicyConfig(a_max_mps2=0.0),
-        lambda: PolicyConfig(autopilot_decel_mps2=9.0),  # above the full-brake figure
+        lambda: PolicyConfig(autopilot_decel_fraction=1.5),  # more than the car's full brake
         lambda: PolicyConfig(stop_margin_m=-1.0),
     ],
 )
@@ -180,7 +187,7 @@ def test_default_to_dict_round_trips():
     [
         (SimConfig(), "scenario", ScenarioConfig()),
         (ScenarioConfig(), "speed_kmh", 10.0),
-        (VehicleConfig(), "tyre_friction", 0.5),
+        (VehicleConfig(), "brake_balance_front", 0.5),
         (CameraConfig(), "width_px", 100),
         (LoopConfig(), "physics_dt_s", 0.001),
         (PerceptionConfig(), "kind", "x"),

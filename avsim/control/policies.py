@@ -53,6 +53,9 @@ class PolicyContext:
     front_f_px: float
     cam_to_bumper_m: float
     control_dt_s: float
+    # The car's mean full-brake deceleration at this run's road friction and speed, measured
+    # (avsim.vehicle.brake_test) [m/s^2].
+    full_brake_decel_mps2: float
 
 
 class BrakingPolicy(ABC):
@@ -176,9 +179,9 @@ class CombinedDefencePolicy(AdjustedBrakingPolicy):
 @POLICIES.register("autopilot")
 class AutopilotPolicy(BrakingPolicy):
     """Reference row ("CARLA autopilot"): knows the stop line from the map, uses no
-    perception. Starts braking when stopping at the line needs `autopilot_decel_mps2`,
-    then tracks a = v^2 / 2d with the brake calibrated to the car's full-brake
-    deceleration `autopilot_full_brake_mps2`."""
+    perception. Starts braking when stopping at the line needs `autopilot_decel_fraction` of
+    the car's full-brake deceleration, then tracks a = v^2 / 2d with the brake calibrated to
+    that deceleration; both are measured at the run's road friction (PolicyContext)."""
 
     cameras = ()
 
@@ -189,7 +192,8 @@ class AutopilotPolicy(BrakingPolicy):
     def decide(self, obs: Observation) -> BrakeDecision:
         dist = obs.stop_line_dist_m - self.config.autopilot_stop_margin_m
         decel = required_decel_mps2(obs.speed_mps, dist)
-        self._braking = self._braking or decel >= self.config.autopilot_decel_mps2
+        full_brake_mps2 = self.context.full_brake_decel_mps2
+        self._braking = self._braking or decel >= self.config.autopilot_decel_fraction * full_brake_mps2
         if not self._braking:
             return BrakeDecision(0.0, obs.stop_line_dist_m, decel)
-        return BrakeDecision(brake_command(decel, self.config.autopilot_full_brake_mps2, 1.0), obs.stop_line_dist_m, decel)
+        return BrakeDecision(brake_command(decel, full_brake_mps2, 1.0), obs.stop_line_dist_m, decel)

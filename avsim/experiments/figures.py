@@ -43,13 +43,15 @@ def _save(fig, path: Path) -> Path:
 
 def make_figures(out_dir: Path, experiments: Sequence[Experiment], cells: Cells) -> dict[str, Path]:
     """Draw every figure whose experiments were run; returns {caption: path}."""
-    by_stem = {e.path.stem: e for e in experiments}
+    by_kind: dict[str, list[Experiment]] = {}
+    for experiment in experiments:
+        by_kind.setdefault(experiment.report, []).append(experiment)
     figures: dict[str, Path] = {}
-    if "table3_stop_positions" in by_stem:
-        table3 = by_stem["table3_stop_positions"]
+    if "table3" in by_kind:
+        table3 = by_kind["table3"][0]
         figures["Speed against distance to the sign, Table III cells"] = _speed_vs_distance(out_dir, table3, cells)
         figures["Where the car stopped, Table III cells"] = _stop_positions(out_dir, table3, cells)
-    series = _confidence_series(by_stem, cells)
+    series = _confidence_series(by_kind, cells)
     if any(series.values()):
         figures["Stop-sign confidence against distance, front and side camera"] = _confidence_vs_distance(out_dir, series)
     return figures
@@ -101,19 +103,18 @@ def _stop_positions(out_dir: Path, experiment: Experiment, cells: Cells) -> Path
     return _save(fig, out_dir / "stop_positions.png")
 
 
-def _confidence_series(by_stem: dict[str, Experiment], cells: Cells) -> dict[str, list[tuple[str, list[dict]]]]:
+def _confidence_series(by_kind: dict[str, list[Experiment]], cells: Cells) -> dict[str, list[tuple[str, list[dict]]]]:
     """{camera: [(label, traces)]}: front from the Fig. 3 cells, side from the defended tables."""
     series: dict[str, list[tuple[str, list[dict]]]] = {"front": [], "side": []}
-    if "fig3_detection" in by_stem:
-        for cell in by_stem["fig3_detection"].cells:
-            series["front"].append((cell.name, cells.traces.get(("fig3_detection", cell.name), [])))
-    for stem, label in (("table1_clean_defended", "clean (Table I)"), ("table2_attacked_defended", "attacked (Table II)"),
-                        ("adaptive_attacker", "adaptive experiment")):
-        if stem not in by_stem:
-            continue
+    for experiment in by_kind.get("fig3", [])[:1]:
+        for cell in experiment.cells:
+            series["front"].append((cell.name, cells.traces.get((experiment.name, cell.name), [])))
+    side_sources = [(e, label) for kind, label in (("table1", "clean (Table I)"), ("table2", "attacked (Table II)"),
+                                                   ("adaptive", "adaptive experiment")) for e in by_kind.get(kind, [])[:1]]
+    for experiment, label in side_sources:
         by_sign: dict[str, list[dict]] = {}
-        for cell in by_stem[stem].cells:
-            traces = [t for t in cells.traces.get((stem, cell.name), []) if "side_conf" in t]
+        for cell in experiment.cells:
+            traces = [t for t in cells.traces.get((experiment.name, cell.name), []) if "side_conf" in t]
             if traces:
                 by_sign.setdefault(cell.config.scenario.sign, []).extend(traces)
         series["side"].extend((f"{label}: {sign}", traces) for sign, traces in by_sign.items())

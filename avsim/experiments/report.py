@@ -18,15 +18,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from avsim.config import VehicleConfig, with_overrides
 from avsim.experiments import study
 from avsim.experiments.spec import Experiment
 from avsim.metrics import write_text_atomic
+from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
 Record = dict[str, Any]
 STOPPED_BEFORE_SIGN = ("stopped_before_line", "stopped_before_sign")
-# The car's full-brake deceleration on dry road (README: about 8.6 m/s^2).
-FULL_BRAKE_DECEL_MPS2 = 8.6
 # Frames where the sign is within the perception's range (16 px) in every placement: the clean
 # sign is first detected about 40 m ahead (`avsim attack eval`).
 CONFIDENCE_WINDOW_M = (10.0, 40.0)
@@ -186,14 +186,24 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
 
 
 def _needed(past: Sequence[dict[str, Any]]) -> str:
-    """Why, in physics: the deceleration each run that ran past needed when braking began."""
+    """Why, in physics: the deceleration each run that ran past needed when braking began, beside
+    what the car's full brake gives on that run's road (measured, `avsim.vehicle.brake_test`)."""
     if not past:
         return ""
     needed = [_needed_decel(r) for r in past]
     why = ", ".join(f"{n:.1f} m/s²" if n is not None else "never braked (no stop sign seen above the threshold)"
                     for n in needed)
-    return (f"; stopping before the sign from where braking began needed {why}, against about "
-            f"{FULL_BRAKE_DECEL_MPS2} m/s² at full brake")
+    full = sorted({round(run_full_brake_decel_mps2(r["config"]), 1) for r in past})
+    roads = sorted({r["config"]["scenario"]["road_friction"] for r in past})
+    return (f"; stopping before the sign from where braking began needed {why}, against "
+            f"{' / '.join(f'{f:.1f}' for f in full)} m/s² at full brake (measured, road friction "
+            f"{' / '.join(f'{mu:g}' for mu in roads)})")
+
+
+def run_full_brake_decel_mps2(config: dict[str, Any]) -> float:
+    """The car's full-brake deceleration for a run's saved config: its vehicle, road and speed [m/s²]."""
+    return full_brake_decel_mps2(with_overrides(VehicleConfig(), config["vehicle"]), config["scenario"]["road_friction"],
+                                 config["scenario"]["speed_kmh"] / 3.6, config["loop"]["physics_dt_s"])
 
 
 def adaptive_answer(cells: Cells, experiment: Experiment) -> list[str]:
@@ -206,6 +216,39 @@ def adaptive_answer(cells: Cells, experiment: Experiment) -> list[str]:
             lines.append(f"- {cell.name}: stopped before the sign in {cells.stopped(stem, cell.name)} runs, "
                          f"bumper {fmt(margins)} m before it (smallest {min(margins):.1f} m)." if margins else f"- {cell.name}: no runs.")
     return ["Does defence 2 (the side camera) hold when the attack also targets the side camera?", "", *lines, ""]
+
+
+def compare_section(cells: Cells, experiment: Experiment, other: Experiment | None) -> list[str]:
+    """Each cell beside the same-named cell of `other` (e.g. the wet road beside the dry one), with
+    the car's measured full-brake deceleration on each road."""
+    if other is None:
+        return [f"(Run `experiments/{experiment.compare_with}.toml` in the same reproduction to compare with it.)", ""]
+    rows = []
+    for cell in experiment.cells:
+        row = [cell.name]
+        for exp in (other, experiment):
+            results = cells.of(exp.name, cell.name)
+            full = [run_full_brake_decel_mps2(r["config"]) for r in results[:1]]
+            row += [cells.stopped(exp.name, cell.name), fmt(cells.values(exp.name, cell.name, "sign_margin_m")),
+                    fmt(cells.values(exp.name, cell.name, "dist_at_brake_m")), f"{full[0]:.2f}" if full else "–"]
+        rows.append(row)
+    a, b = other.name, experiment.name
+    return [f"Each cell beside the same-named cell of `{a}`: stopped before the sign, bumper before the sign at rest "
+            f"[m], bumper to sign when braking began [m], and the car's full-brake deceleration on that road "
+            f"[m/s²] (measured on a test track, `python -m avsim.vehicle.brake_test`).", "",
+            *_table(["cell", f"{a}: stopped", "bumper before sign", "braking began", "full brake",
+                     f"{b}: stopped", "bumper before sign", "braking began", "full brake"], rows)]
+
+
+_SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[str]]] = {
+    "cells": lambda cells, experiment, by_name: [],
+    "table3": lambda cells, experiment, by_name: _table3(cells, experiment.name),
+    "table1": lambda cells, experiment, by_name: _defended(cells, experiment.name, study.TABLE1),
+    "table2": lambda cells, experiment, by_name: _defended(cells, experiment.name, study.TABLE2),
+    "fig3": lambda cells, experiment, by_name: _fig3(cells, experiment),
+    "adaptive": lambda cells, experiment, by_name: adaptive_answer(cells, experiment),
+    "compare": lambda cells, experiment, by_name: compare_section(cells, experiment, by_name.get(experiment.compare_with)),
+}
 
 
 def _needed_decel(result: dict[str, Any]) -> float | None:
@@ -232,19 +275,10 @@ def write_report(out_dir: Path, experiments: Sequence[Experiment], records: Sequ
         "Each cell is run over its seeds (start position and lighting vary) and reported as mean ± std. "
         "Every run has a rerun recording under `rrd/` and a line in `runs.jsonl`.", "",
     ]
+    by_name = {e.name: e for e in experiments}
     for experiment in experiments:
-        stem = experiment.path.stem
         lines += [f"## {experiment.title}", "", f"`experiments/{experiment.path.name}`, {experiment.seeds} seed(s) per cell.", ""]
-        if stem == "table3_stop_positions":
-            lines += _table3(cells, stem)
-        elif stem == "table1_clean_defended":
-            lines += _defended(cells, stem, study.TABLE1)
-        elif stem == "table2_attacked_defended":
-            lines += _defended(cells, stem, study.TABLE2)
-        elif stem == "fig3_detection":
-            lines += _fig3(cells, experiment)
-        elif stem == "adaptive_attacker":
-            lines += adaptive_answer(cells, experiment)
+        lines += _SECTIONS[experiment.report](cells, experiment, by_name)
         lines += ["All cells, avsim's own result keys (front bumper to sign):", "", *_cell_table(cells, experiment)]
     lines += ["## Findings", "", *findings(cells, experiments), ""]
     if failed:

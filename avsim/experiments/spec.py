@@ -44,7 +44,13 @@ import numpy as np
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
 
-TOP_LEVEL_KEYS = ("title", "seeds", "defaults", "vary", "cells")
+TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary", "cells")
+# The section `avsim reproduce` writes for an experiment, declared by the file (`report = "..."`),
+# so a new experiment needs no code change in the report: "cells" (the default) is the table of
+# every cell's results; "table3", "table1", "table2" and "fig3" set the cells beside the study's
+# figures of that name; "adaptive" answers whether the side camera holds; "compare" sets each
+# cell beside the same-named cell of the experiment named by `compare_with` (a file stem).
+REPORT_KINDS = ("cells", "table3", "table1", "table2", "fig3", "adaptive", "compare")
 DEFAULT_SEEDS = 5
 # Second word of the [vary] generator's seed, so its draws are independent of the start
 # jitter, which ClosedLoop draws from default_rng(scenario.seed).
@@ -84,6 +90,13 @@ class Experiment:
     seeds: int
     cells: tuple[Cell, ...]
     vary: tuple[tuple[str, float, float], ...] = ()
+    report: str = "cells"  # one of REPORT_KINDS
+    compare_with: str | None = None  # with report = "compare": the stem of the other experiment file
+
+    @property
+    def name(self) -> str:
+        """The file's stem, which names the experiment in results and reports."""
+        return self.path.stem
 
     def cell(self, name: str | None = None) -> Cell:
         """The cell called `name`; the first cell when `name` is None."""
@@ -147,8 +160,22 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
         _check_registry_names(with_overrides(SimConfig(), defaults))
     with _located(path, "[vary]"):
         vary = _parse_vary(raw.get("vary", {}))
+    report, compare_with = _parse_report(path, raw)
     cells = _parse_cells(path, raw.get("cells"), defaults, vary)
-    return Experiment(path=path, title=title, seeds=seeds, cells=cells, vary=vary)
+    return Experiment(path=path, title=title, seeds=seeds, cells=cells, vary=vary, report=report, compare_with=compare_with)
+
+
+def _parse_report(path: Path, raw: Mapping[str, Any]) -> tuple[str, str | None]:
+    """The declared report kind and, for "compare", the experiment it compares with."""
+    report = raw.get("report", "cells")
+    if report not in REPORT_KINDS:
+        raise ConfigError(f"{path}: 'report' must be one of {', '.join(REPORT_KINDS)}, got {report!r}")
+    compare_with = raw.get("compare_with")
+    if (report == "compare") != (compare_with is not None):
+        raise ConfigError(f"{path}: 'compare_with' (the stem of another experiment file) goes with report = \"compare\", and only with it")
+    if compare_with is not None and (not isinstance(compare_with, str) or not compare_with.strip()):
+        raise ConfigError(f"{path}: 'compare_with' must name another experiment file by its stem, got {compare_with!r}")
+    return report, compare_with
 
 
 # ---- parts of the file -------------------------------------------------------------------

@@ -17,6 +17,7 @@ SERIES_PANELS = (
     ("bumper to stop line [m]: true and estimated", ("stop_line_dist_m", "est_stop_line_dist_m")),
     ("top stop-sign confidence", ("top_stop_conf",)),
     ("required deceleration [m/s^2]", ("required_decel_mps2",)),
+    ("body pitch [rad] and wheel slip while braking", ("pitch_rad", "max_brake_slip")),
 )
 
 

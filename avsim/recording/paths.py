@@ -46,6 +46,8 @@ METRIC_FIELDS = (
     "est_stop_line_dist_m",
     "top_stop_conf",
     "required_decel_mps2",
+    "pitch_rad",
+    "max_brake_slip",
 )
 
 

@@ -70,6 +70,8 @@ SERIES_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
     "est_stop_line_dist_m": ("estimated [m]", (240, 150, 30)),
     "top_stop_conf": ("confidence", (150, 80, 200)),
     "required_decel_mps2": ("required deceleration [m/s^2]", (220, 90, 90)),
+    "pitch_rad": ("body pitch, nose down [rad]", (90, 90, 90)),
+    "max_brake_slip": ("largest wheel slip while braking", (200, 120, 40)),
 }
 _STOP_BOX_COLOUR = (255, 40, 40)
 _OTHER_BOX_COLOUR = (255, 200, 0)

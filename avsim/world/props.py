@@ -72,10 +72,17 @@ def _yaw_quat(yaw_rad: float) -> list[float]:
     return [math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)]
 
 
-def add_ground(spec: mujoco.MjSpec, material: str, tyre_friction: float) -> None:
-    """The physical road plane (hidden, group 3) and a visual ground just below it."""
-    spec.worldbody.add_geom(name="ground/contact", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[600, 600, 1],
-                            friction=[tyre_friction, 0.005, 0.0001], group=3, rgba=[0, 0, 0, 0])
+GROUND_CONTACT_GEOM = "ground/contact"
+
+
+def add_ground(spec: mujoco.MjSpec, material: str) -> None:
+    """The physical road plane (hidden, group 3) and a visual ground just below it.
+
+    The plane's friction is not used: the car's tyres touch it only through explicit contact
+    pairs that carry the road's friction (`avsim.vehicle.assembly.add_tyre_contacts`).
+    """
+    spec.worldbody.add_geom(name=GROUND_CONTACT_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[600, 600, 1],
+                            group=3, rgba=[0, 0, 0, 0])
     _geom(spec, "ground/visual", BOX, (0, 0, -0.1), (600, 600, 0.05), material)
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from avsim.config import CameraConfig, SimConfig, VehicleConfig
 from avsim.errors import ConfigError
+from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
 from avsim.world import props
 from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
 from avsim.world.signs import SIGN_SHAPES, PlacedSign, add_sign
@@ -23,8 +24,6 @@ from avsim.world.textures import CLEAN_TEXTURE_FILES, TEXTURE_DIR, load_texture_
 from avsim.world.towns import PLACEMENTS, TOWNS
 from avsim.world.towns.base import SIGN_BOTTOM_M
 
-CAR_XML = Path(__file__).resolve().parents[2] / "models" / "car.xml"
-CAR_PREFIX = "car/"
 STOP_SIGN_NAME = "stop_sign"
 # The sign stands just past the stop line, as at a US junction.
 SIGN_BEYOND_STOP_LINE_M = 1.0
@@ -85,7 +84,7 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
     props.add_materials(spec)
-    props.add_ground(spec, town.ground_material, config.vehicle.tyre_friction)
+    props.add_ground(spec, town.ground_material)
     _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
     add_road(spec, town.layout)
     rng = np.random.default_rng(scenario.layout_seed)
@@ -103,6 +102,7 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     if add_extras is not None:
         add_extras(spec, info)
     _attach_car(spec, config.vehicle, config.camera)
+    add_tyre_contacts(spec, props.GROUND_CONTACT_GEOM, scenario.road_friction)
     return spec, info
 
 
@@ -148,10 +148,7 @@ def _add_sun(spec: mujoco.MjSpec, elevation_deg: float, azimuth_deg: float, inte
 
 
 def _attach_car(spec: mujoco.MjSpec, vehicle: VehicleConfig, camera: CameraConfig) -> None:
-    car = mujoco.MjSpec.from_file(str(CAR_XML))
-    for geom in car.geoms:
-        if geom.name.startswith("tyre_"):
-            geom.friction[0] = vehicle.tyre_friction
+    car = load_car(vehicle)
     car.camera("front").fovy = camera.fovy_deg
     side = car.camera("side")
     side.fovy = camera.side_fovy_deg

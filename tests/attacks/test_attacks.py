@@ -118,14 +118,19 @@ def test_wrong_shape_texture_exits_2(tmp_path, capsys):
     assert code == 2 and len(err) == 1 and "wide.png" in err[0]
 
 
-def test_the_strongest_shipped_attack_makes_baseline_run_past_the_sign_in_town07(study_run):
-    # yang delays the first detection from 39.6 m to about 35 m: too late for the
-    # baseline's constant 0.85 brake (a 38 m stop from 85 km/h).
+def test_the_strongest_shipped_attack_against_baseline_in_town07(study_run):
+    # With the rigid car yang delayed the first detection at seed 0 from 39.6 m to 34.9 m and
+    # baseline ran 0.8 m past. With the suspended car (the body squats 0.04 deg at cruise and the
+    # frames fall elsewhere along the approach) the detector scores one attacked frame above 0.5
+    # as soon as the box reaches the perception's 16 px range, as for the clean sign, and 0.85
+    # brake now gives 8.0 m/s^2: the attack changes nothing at this seed. Asserted as the
+    # finding it is (issue 12 re-measures it over seeds without the range cut).
     clean = study_run("town07", "standard", "baseline", perception="detector")
     attacked = study_run("town07", "standard", "baseline", perception="detector", sign="yang")
     assert clean.sign_margin_m > 0
-    assert attacked.sign_margin_m < 0
-    assert attacked.first_detection_dist_m < clean.first_detection_dist_m
+    assert attacked.sign_margin_m > 0
+    frame_spacing_m = 85 / 3.6 * 0.05
+    assert abs(attacked.first_detection_dist_m - clean.first_detection_dist_m) <= frame_spacing_m
 
 
 @pytest.mark.slow

@@ -83,3 +83,21 @@ def test_lane_keeper_matches_stanley_law():
 def test_lane_keeper_clamps_to_max_steer(y, yaw, expected):
     lk = LaneKeeper(lane_y_m=0.0, max_steer_rad=0.5)
     assert lk.steer_rad(y, yaw, 0.0) == expected
+
+
+@pytest.mark.parametrize("town", ["town03", "town07", "town10"])
+def test_lane_keeper_holds_the_lane_within_0_3_m_over_a_full_85_kmh_run(town):
+    """Closed loop: start jitter, the cruise's acceleration and a full stop with the nose
+    diving; the car stays within 0.3 m of its lane centre throughout."""
+    from avsim.loop import ClosedLoop
+    from helpers import make_config
+
+    loop = ClosedLoop(make_config(scenario={"town": town}, policy={"name": "baseline"}))
+    lane_y_m = loop.scene.layout.lane_center_y_m
+    worst_m = 0.0
+    while not loop.done():
+        record = loop.step()
+        worst_m = max(worst_m, abs(record.y_m - lane_y_m))
+    loop.close()
+    assert loop.stopped  # a full run: it braked and stopped
+    assert worst_m <= 0.3

@@ -12,6 +12,7 @@ from avsim.experiments.results_file import read_records
 TINY_TABLE3 = """
 title = "Table III stand-in"
 seeds = 2
+report = "table3"
 [defaults]
 scenario = { town = "town07", placement = "standard", speed_kmh = 40, start_speed_kmh = 40, start_dist_m = 50 }
 perception = { kind = "oracle" }
@@ -28,6 +29,7 @@ policy = { name = "autopilot" }
 TINY_FIG3 = """
 title = "Fig. 3 stand-in"
 seeds = 1
+report = "fig3"
 [defaults]
 scenario = { town = "town07", placement = "standard", speed_kmh = 40, start_speed_kmh = 40, start_dist_m = 50 }
 perception = { kind = "oracle" }
@@ -95,13 +97,39 @@ def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tm
     path = tmp_path / "table3_stop_positions.toml"
     path.write_text(TINY_TABLE3)
     experiment = load_experiment(path)
-    ran_past = {"outcome": "stopped_past_sign", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 20.0}
-    stopped = {"outcome": "stopped_before_line", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 40.0}
+    config = experiment.cells[1].config.to_dict()
+    ran_past = {"outcome": "stopped_past_sign", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 20.0, "config": config}
+    stopped = {"outcome": "stopped_before_line", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 40.0, "config": config}
     records = [{"experiment": "table3_stop_positions", "cell": "attacked sign, side_camera", "seed": k, "status": "ok",
                 "result": result, "trace": {}} for k, result in enumerate((ran_past, stopped))]
     lines = findings(Cells(records), [experiment])
     assert any("attacked sign, side_camera (defence): ran past the sign in 1 of 2 runs" in line and "10.0 m/s²" in line
                for line in lines)  # v²/2d = 400/40
+    # Beside it, the car's full brake at that run's road friction and speed, measured, not a constant.
+    from avsim.vehicle.brake_test import full_brake_decel_mps2
+
+    measured = full_brake_decel_mps2(experiment.cells[1].config.vehicle, 0.9, 40 / 3.6)
+    assert any(f"against {measured:.1f} m/s² at full brake (measured, road friction 0.9)" in line for line in lines)
+
+
+def test_a_compare_report_sets_each_cell_beside_the_other_experiments_same_named_cell(tmp_path):
+    from avsim.experiments.report import Cells, compare_section
+    from avsim.experiments.spec import load_experiment
+
+    (tmp_path / "dry.toml").write_text(TINY_TABLE3)
+    (tmp_path / "wet.toml").write_text(TINY_TABLE3.replace('report = "table3"', 'report = "compare"\ncompare_with = "dry"')
+                                       .replace("start_dist_m = 50 }", "start_dist_m = 50, road_friction = 0.5 }"))
+    dry, wet = load_experiment(tmp_path / "dry.toml"), load_experiment(tmp_path / "wet.toml")
+    records = [{"experiment": exp.name, "cell": "autopilot", "seed": 0, "status": "ok", "trace": {},
+                "result": {"outcome": "stopped_before_line", "sign_margin_m": margin, "dist_at_brake_m": 30.0,
+                           "config": exp.cell("autopilot").config.to_dict()}}
+               for exp, margin in ((dry, 1.5), (wet, -2.0))]
+    lines = compare_section(Cells(records), wet, dry)
+    row = next(line for line in lines if line.startswith("| autopilot |"))
+    cols = [c.strip() for c in row.strip("|").split("|")]
+    assert cols[1:3] == ["1/1", "1.5"] and cols[5:7] == ["1/1", "-2.0"]
+    assert float(cols[8]) < 0.7 * float(cols[4])  # wet road (mu 0.5 against 0.9): far less full-brake deceleration
+    assert compare_section(Cells(records), wet, None)[0].startswith("(Run `experiments/dry.toml`")
 
 
 def test_zero_workers_is_refused_before_a_results_folder_is_made(tmp_path, capsys):

@@ -26,7 +26,13 @@ SHIPPED = {
     "fig3_detection.toml": [(sign, "baseline") for sign in ("clean", "chen", "eykholt", "lu_v2", "lu_v3", "yang")],
     "adaptive_attacker.toml": [("adaptive", "baseline"), ("adaptive", "side_camera"), ("adaptive", "adjusted"),
                                ("adaptive", "combined"), ("yang", "side_camera")],
+    "wet_road.toml": [("clean", "baseline"), ("yang", "baseline"), ("clean", "adjusted"), ("yang", "adjusted"),
+                      ("clean", "side_camera"), ("yang", "side_camera"), ("clean", "autopilot")],
 }
+# file name -> the report section it declares
+REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
+               "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
+               "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare"}
 
 
 # ---- the shipped files ------------------------------------------------------------------
@@ -43,6 +49,9 @@ def test_shipped_file_loads_with_the_study_cells(name):
     for cell in experiment.cells:
         assert cell.config.scenario.speed_kmh == 85.0
         assert cell.config.perception.kind == "detector"
+    assert experiment.report == REPORT_KIND[name]
+    road = {c.config.scenario.road_friction for c in experiment.cells}
+    assert road == ({0.5} if name == "wet_road.toml" else {0.9})
     if "defended" in name:
         assert [(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells] == DEFENDED_CELLS
     else:
@@ -133,6 +142,9 @@ BAD_FILES = {
     "vary_not_a_range": ("[vary]\nscenario = { sun_intensity = 1.0 }\n" + CELL, ["[vary]", "scenario.sun_intensity"]),
     "vary_int_key": ("[vary]\nscenario = { layout_seed = [0, 9] }\n" + CELL, ["[vary]", "scenario.layout_seed"]),
     "vary_out_of_range": ("[vary]\nscenario = { sun_intensity = [0.5, 3.0] }\n" + CELL, ["[vary]", "cells[0]", "scenario.sun_intensity"]),
+    "unknown_report_kind": ('report = "table4"\n' + CELL, ["report", "table4", "table3"]),
+    "compare_without_other": ('report = "compare"\n' + CELL, ["compare_with"]),
+    "compare_with_without_compare": ('compare_with = "x"\n' + CELL, ["compare_with"]),
 }
 
 

@@ -54,8 +54,8 @@ def test_placement_is_measured_from_the_travelled_lane_edge(placement, offset_m)
 def test_car_is_sedan_sized():
     loop = ClosedLoop(make_config())
     assert loop.vehicle.mass_kg == pytest.approx(1500, rel=0.03)
-    front = loop.model.body("car/steer_fl").pos[0]
-    rear = loop.model.body("car/wheel_rl").pos[0]
+    front = loop.model.body("car/hub_fl").pos[0]
+    rear = loop.model.body("car/hub_rl").pos[0]
     assert front - rear == pytest.approx(2.7)
     loop.close()
 
