@@ -21,6 +21,13 @@ from avsim.errors import ConfigError
 
 C = TypeVar("C")
 
+# perception.oracle_min_box_height_px = f H / d50 with the default front camera (f = 895.7 px), the
+# stop sign's H = 0.762 m and d50 = 100.4 m, the distance at which the learned detector's clean
+# stop-sign recall on 3000 held-out renders falls below 0.5 (0.775 at 80-100 m, 0.247 at
+# 100-120 m): `avsim detector make-data --out data/signs_range --train 0 --val 3000 --max-dist-m 160`,
+# then `avsim detector eval --data data/signs_range`.
+ORACLE_MIN_BOX_HEIGHT_PX = 6.8
+
 
 def _require(ok: bool, message: str) -> None:
     if not ok:
@@ -55,6 +62,9 @@ class ScenarioConfig:
     # Tyre-road friction coefficient (the tyre's peak): dry asphalt 0.9, wet 0.5-0.6, packed
     # snow about 0.2, ice about 0.1. It is the friction of MuJoCo's tyre-road contacts.
     road_friction: float = 0.9
+    # Error of the car's HD map: its stop line lies this far beyond the real one along the road
+    # [m] (negative: before it). Only map-reading policies (the autopilot) are affected.
+    map_stop_line_offset_m: float = 0.0
 
     def __post_init__(self) -> None:
         _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
@@ -64,6 +74,8 @@ class ScenarioConfig:
         _require(0 <= self.start_jitter_m <= 10, f"scenario.start_jitter_m must be in [0, 10], got {self.start_jitter_m}")
         _require(5 <= self.sun_elevation_deg <= 90, f"scenario.sun_elevation_deg must be in [5, 90], got {self.sun_elevation_deg}")
         _require(0.1 <= self.sun_intensity <= 2.0, f"scenario.sun_intensity must be in [0.1, 2], got {self.sun_intensity}")
+        _require(-50 <= self.map_stop_line_offset_m <= 50,
+                 f"scenario.map_stop_line_offset_m must be in [-50, 50] m, got {self.map_stop_line_offset_m}")
         _require(0.05 <= self.road_friction <= 1.5,
                  f"scenario.road_friction must be in [0.05, 1.5] (dry 0.9, wet 0.5, snow 0.2), got {self.road_friction}")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
@@ -188,11 +200,14 @@ class PerceptionConfig:
     """
 
     kind: str = "detector"
-    # The perception's range, for the detector as for the oracle: a sign is reported
-    # only once its box is this tall. 16 px is about 43 m at the default front camera
-    # (f = 896 px), close to where the study's car first braked (about 39 m), and where
-    # 1 px of box error is a 6% range error for the pinhole estimate.
-    min_box_height_px: float = 16.0
+    # A sensor-model knob for the learned detector: boxes shorter than this are dropped. The
+    # default keeps every box the network reports; where to start acting on a far sign is the
+    # policy's decision (policy.trigger_dist_m), not the perception's.
+    min_box_height_px: float = 1.0
+    # The oracle's range. A ground-truth box has no range of its own, so the oracle reports a
+    # sign only once its box is this tall: calibrated to where the learned detector's clean
+    # stop-sign recall on held-out renders falls below 0.5 (README, "Perception range").
+    oracle_min_box_height_px: float = ORACLE_MIN_BOX_HEIGHT_PX
     # Detector weights file; "" means the shipped models/sign_detector.pt.
     weights_path: str = ""
     # The detector reports every box at least this confident. The policy's own
@@ -228,6 +243,8 @@ class PerceptionConfig:
         _require(0 <= self.sensor_noise_std <= 50, f"perception.sensor_noise_std must be in [0, 50] levels, got {self.sensor_noise_std}")
         _require(1 <= self.threads <= 64, f"perception.threads must be in [1, 64], got {self.threads}")
         _require(self.min_box_height_px >= 1, f"perception.min_box_height_px must be >= 1, got {self.min_box_height_px}")
+        _require(self.oracle_min_box_height_px >= 1,
+                 f"perception.oracle_min_box_height_px must be >= 1, got {self.oracle_min_box_height_px}")
         _require(0 < self.min_confidence < 1, f"perception.min_confidence must be in (0, 1), got {self.min_confidence}")
 
 
@@ -237,10 +254,16 @@ class PolicyConfig:
 
     name: str = "baseline"
     conf_threshold: float = 0.5  # a detection counts above this confidence
+    # The braking gate: a perceiving policy acts on a stop sign only once its pinhole estimate of
+    # the distance to the stop line is at most this [m]; 40 m is the study stack's gate. None (in
+    # TOML `inf`, on the command line `none`) is no gate. The autopilot reads the map, not a gate.
+    trigger_dist_m: float | None = 40.0
     baseline_brake: float = 0.85  # constant brake level of the `baseline` rule
     brake_multiplier: float = 1.0  # M in b = min(a / a_max * M, 1)
     a_max_mps2: float = 9.81
     sign_height_m: float = 0.762  # H_real of the stop sign, flat to flat
+    # The sign height the study's stack assumes in its pinhole estimate (`study_stack` only).
+    study_sign_height_m: float = 1.0
     # The road convention the policies assume: the stop line is this far before the sign.
     stop_line_before_sign_m: float = 1.0
     # Distance the `adjusted` policy aims to stop short of the line. Its distance comes
@@ -260,6 +283,9 @@ class PolicyConfig:
         _require(0.6 <= self.brake_multiplier <= 1.0, f"policy.brake_multiplier (M) must be in [0.6, 1], got {self.brake_multiplier}")
         _require(self.a_max_mps2 > 0, f"policy.a_max_mps2 must be > 0, got {self.a_max_mps2}")
         _require(self.sign_height_m > 0, f"policy.sign_height_m must be > 0, got {self.sign_height_m}")
+        _require(self.study_sign_height_m > 0, f"policy.study_sign_height_m must be > 0, got {self.study_sign_height_m}")
+        _require(self.trigger_dist_m is None or 0 < self.trigger_dist_m <= 1000,
+                 f"policy.trigger_dist_m must be in (0, 1000] m, or none for no gate, got {self.trigger_dist_m}")
         _require(0.1 <= self.autopilot_decel_fraction <= 1,
                  f"policy.autopilot_decel_fraction must be in [0.1, 1], got {self.autopilot_decel_fraction}")
         _require(0 <= self.stop_margin_m <= 10, f"policy.stop_margin_m must be in [0, 10], got {self.stop_margin_m}")
@@ -307,7 +333,9 @@ def with_overrides(config: C, overrides: Mapping[str, Any], _path: str = "") -> 
 def _coerce(value: Any, annotation: Any, dotted: str) -> Any:
     """Check `value` against a scalar field type; ints are accepted for floats."""
     expected = [a for a in typing.get_args(annotation)] if isinstance(annotation, types.UnionType) else [annotation]
-    if value is None and type(None) in expected:
+    # An optional field's None is written `none` on the command line or `inf` in TOML (which has
+    # no null), e.g. policy.trigger_dist_m = none: no gate.
+    if type(None) in expected and (value is None or value == "none" or value == math.inf):
         return None
     for kind in expected:
         if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):

@@ -21,17 +21,18 @@ import numpy as np
 
 from avsim.config import SimConfig
 from avsim.control.cruise import LaneKeeper, SpeedController
-from avsim.control.policies import POLICIES, STOP_CLASS, BrakeDecision, Observation, PolicyContext
+from avsim.control.policies import POLICIES, STOP_CLASS, BrakeDecision, CameraModel, Observation, PolicyContext
 from avsim.errors import PhysicsError
 from avsim.metrics import STOPPED_SPEED_MPS, RunResult, StepRecord, summarise
 from avsim.perception.base import Detection
 from avsim.perception.factory import build_perception
-from avsim.sensors.camera import CameraRig
+from avsim.sensors.camera import CAMERA_NAMES, CameraRig
 from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls, Vehicle
+from avsim.world.hd_map import HdMap, MapHandle
 from avsim.world.scene import build_scene
 
-# A car past the sign by this much without braking has certainly run it [m].
+# A car past the sign by this much has certainly run it [m].
 RAN_PAST_SIGN_M = 40.0
 MAX_PLAUSIBLE_SPEED_MPS = 100.0
 _INSTABILITY_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -49,16 +50,18 @@ class ClosedLoop:
         self.vehicle = Vehicle(self.model, self.data, config.vehicle)
         self.rig = CameraRig(self.model, config.camera, fog=config.scenario.fog_end_m > 0)
         self.perception = build_perception(config.perception, self.model, self.scene, config.scenario.seed)
-        cam_x_m = float(self.model.cam_pos[self.model.camera("car/front").id][0])
         context = PolicyContext(
-            front_f_px=self.rig.intrinsics("front").f_px,
-            cam_to_bumper_m=FRONT_BUMPER_X_M - cam_x_m,
+            cameras={name: self._camera_model(name) for name in CAMERA_NAMES},
             control_dt_s=config.loop.control_dt_s,
             # Measured on a test track at this run's road friction and speed, not assumed.
             full_brake_decel_mps2=full_brake_decel_mps2(config.vehicle, config.scenario.road_friction,
                                                         config.scenario.speed_kmh / 3.6, config.loop.physics_dt_s),
         )
-        self.policy = policy_factory(config.policy, context)
+        # The map is privileged: only a policy that declares it uses the map is handed it.
+        self.hd_map = HdMap((self.scene.stop_line_x_m + config.scenario.map_stop_line_offset_m,))
+        map_handle = MapHandle(self.hd_map, lambda: float(self.vehicle.front_bumper_xy_m()[0]))
+        extra = {"map_handle": map_handle} if getattr(policy_factory, "uses_map", False) else {}
+        self.policy = policy_factory(config.policy, context, **extra)
         self.cruise = SpeedController(config.scenario.speed_kmh / 3.6)
         self.lane = LaneKeeper(self.scene.layout.lane_center_y_m)
         self.records: list[StepRecord] = []
@@ -66,6 +69,13 @@ class ClosedLoop:
         self.braking = False
         self.stopped = False
         self._place_car(np.random.default_rng(config.scenario.seed))
+
+    def _camera_model(self, name: str) -> CameraModel:
+        """A camera as the policies know it: intrinsics, yaw and how far the bumper is ahead of it."""
+        intrinsics = self.rig.intrinsics(name)
+        cam_x_m = float(self.model.cam_pos[self.model.camera(f"car/{name}").id][0])
+        yaw_deg = self.config.camera.side_yaw_deg if name == "side" else 0.0
+        return CameraModel(intrinsics.f_px, intrinsics.principal_point_px[0], math.radians(yaw_deg), FRONT_BUMPER_X_M - cam_x_m)
 
     def _place_car(self, rng: np.random.Generator) -> None:
         scenario = self.config.scenario
@@ -84,8 +94,7 @@ class ClosedLoop:
         # render -> perceive
         detections = self.perception.detect_cameras(self.rig, self.data, self.policy.cameras)
         # decide
-        bumper = self.vehicle.front_bumper_xy_m()
-        obs = Observation(self.time_s, speed, detections, self.scene.stop_line_x_m - bumper[0])
+        obs = Observation(self.time_s, speed, detections)
         decision = self.policy.decide(obs)
         # actuate
         controls = self._controls(decision, speed)
@@ -135,10 +144,11 @@ class ClosedLoop:
 
     # ---- whole run ---------------------------------------------------------------------
     def done(self) -> bool:
-        """Whether the run is over: stopped after braking, ran well past the sign, or timed out."""
+        """Whether the run is over: stopped after braking, ran well past the sign (braking or
+        not: a car that coasts on after a brief brake has run it too), or timed out."""
         self.stopped = self.braking and self.vehicle.speed_mps() < STOPPED_SPEED_MPS
         sign_dist_m = self.scene.stop_sign.base_pos_m[0] - float(self.vehicle.front_bumper_xy_m()[0])
-        ran_past = not self.braking and sign_dist_m < -RAN_PAST_SIGN_M
+        ran_past = sign_dist_m < -RAN_PAST_SIGN_M
         return self.stopped or ran_past or self.time_s >= self.config.loop.max_time_s
 
     def run(self, on_step: Callable[[ClosedLoop, StepRecord], None] | None = None) -> RunResult:

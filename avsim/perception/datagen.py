@@ -51,6 +51,9 @@ class DataGenConfig:
     images_per_scene: int = 25
     seed: int = 0
     workers: int = 2
+    # Farthest target sign [m]. 80 m covers the braking range; the perception-range
+    # measurement (README) renders out to 160 m, where the sign is 4 px tall.
+    max_dist_m: float = 80.0
 
     def __post_init__(self) -> None:
         if self.n_train < 0 or self.n_val < 0 or self.n_train + self.n_val == 0:
@@ -59,6 +62,8 @@ class DataGenConfig:
             raise ConfigError(f"images_per_scene must be in [1, 1000], got {self.images_per_scene}")
         if not 1 <= self.workers <= 64:
             raise ConfigError(f"workers must be in [1, 64], got {self.workers}")
+        if not 10.0 <= self.max_dist_m <= 300.0:
+            raise ConfigError(f"--max-dist-m must be in [10, 300] m (the approach road is 320 m long), got {self.max_dist_m}")
 
 
 @dataclass(frozen=True)
@@ -147,7 +152,7 @@ def _degrade(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def render_scene(job: SceneJob, out_dir: str) -> list[dict]:
+def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0) -> list[dict]:
     """Render one scene's images into out_dir/images/<split>/ and return their label records."""
     rng = np.random.default_rng(job.seed)
     config = _scene_config(rng, job.split)
@@ -171,7 +176,7 @@ def render_scene(job: SceneJob, out_dir: str) -> list[dict]:
             y = layout.lane_center_y_m + lane * layout.lane_width_m + float(rng.uniform(-0.6, 0.6))
             if rng.random() < 0.85:  # looking down the road at the target sign
                 # Square-root spacing puts more samples far away, where signs are small and hard.
-                dist_m = 5.0 + 75.0 * math.sqrt(rng.random())
+                dist_m = 5.0 + (max_dist_m - 5.0) * math.sqrt(rng.random())
                 x = info.stop_sign.face_center_m[0] - dist_m - float(base_pos[0])
                 yaw = math.radians(rng.uniform(-3, 3))
             else:  # elsewhere: past the junction, or turned towards the roadside
@@ -209,9 +214,9 @@ def _jobs(config: DataGenConfig) -> list[SceneJob]:
     return jobs
 
 
-def _render_job(args: tuple[SceneJob, str]) -> tuple[SceneJob, list[dict]]:
-    job, out_dir = args
-    return job, render_scene(job, out_dir)
+def _render_job(args: tuple[SceneJob, str, float]) -> tuple[SceneJob, list[dict]]:
+    job, out_dir, max_dist_m = args
+    return job, render_scene(job, out_dir, max_dist_m)
 
 
 def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: bool = False) -> Path:
@@ -227,7 +232,7 @@ def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: b
         (partial / "images" / split).mkdir(parents=True)
     jobs = _jobs(config)
     results: dict[int, list[dict]] = {}
-    work = [(job, str(partial)) for job in jobs]
+    work = [(job, str(partial), config.max_dist_m) for job in jobs]
     with tqdm(total=config.n_train + config.n_val, desc="rendering", unit="img") as bar:
         if config.workers == 1:
             outputs = map(_render_job, work)

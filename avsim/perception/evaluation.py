@@ -25,7 +25,8 @@ from avsim.control.pinhole import pinhole_distance_m
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
 
-DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60))
+DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60), (60, 80), (80, 100), (100, 120), (120, 140),
+               (140, 160))
 # The range over which the shipped model's recall target (>= 0.95) is stated, pooled.
 TARGET_RANGE_M = (10, 45)
 STOP_SIGN_HEIGHT_M = 0.762
@@ -55,6 +56,18 @@ class EvalReport:
     pinhole_median_rel_err_by_bin: dict[str, float]
     conf_threshold: float
     n_images: int
+
+    @property
+    def half_recall_range_m(self) -> float | None:
+        """The detector's range: the distance [m] at which its stop-sign recall falls below 0.5,
+        interpolated linearly between the centres of the first bin under 0.5 and the bin before
+        it; None if no measured bin falls below 0.5 (or the very first one does)."""
+        centres = [((lo + hi) / 2, self.recall_by_bin[_bin_name(lo, hi)]) for lo, hi in DIST_BINS_M
+                   if self.count_by_bin[_bin_name(lo, hi)] > 0]
+        for (d0, r0), (d1, r1) in zip(centres, centres[1:]):
+            if r0 >= 0.5 > r1:
+                return d0 + (d1 - d0) * (r0 - 0.5) / (r0 - r1)
+        return None
 
 
 def wilson_interval(hits: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -179,6 +192,11 @@ def write_report(report: EvalReport, out_dir: str | Path, title: str) -> tuple[P
     lo, hi = report.target_range_recall_ci95
     lines.append(f"| {TARGET_RANGE_M[0]}-{TARGET_RANGE_M[1]} m (target range, pooled) | {report.target_range_count} | "
                  f"{report.target_range_recall:.3f} | {lo:.3f}–{hi:.3f} | | |")
+    half_range = report.half_recall_range_m
+    if half_range is not None:
+        lines += ["", f"Range: stop-sign recall falls below 0.5 at {half_range:.1f} m (interpolated between bin centres), "
+                      f"where the stop sign is {STOP_SIGN_HEIGHT_M * CameraConfig().f_px / half_range:.1f} px tall in the "
+                      f"front camera."]
     lines += ["", f"False positives at the threshold: {report.fp_per_100_empty:.2f} per 100 sign-free frames "
               f"({report.n_empty} frames).", "", f"![recall and confidence against distance]({plot_path.name})", ""]
     report_path = out / "report.md"

@@ -15,7 +15,7 @@ from avsim.world.scene import SceneInfo
 # (config, model, scene, seed) -> Perception; the seed is the run's scenario.seed (sensor noise).
 PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int], Perception]
 PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
-PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed: OraclePerception(model, scene.signs, cfg.min_box_height_px))
+PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
 
 
 def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:

@@ -1,20 +1,41 @@
 """Braking policies on hand-made observations (no simulation)."""
 
+import math
+
 import pytest
 
 from avsim.config import PolicyConfig
-from avsim.control.policies import POLICIES, Observation, PolicyContext
+from avsim.control.policies import POLICIES, CameraModel, Observation, PolicyContext
 from avsim.perception.base import Detection
+from avsim.world.hd_map import HdMap, MapHandle
 
 F_PX = 895.69
 CAM_TO_BUMPER_M = 1.75
+SIDE_YAW_RAD = math.radians(20.0)
+SIDE_CAM_TO_BUMPER_M = 1.45
 DT = 0.05
 FULL_BRAKE_MPS2 = 8.2  # a measured full-brake deceleration (avsim.vehicle.brake_test)
-CTX = PolicyContext(front_f_px=F_PX, cam_to_bumper_m=CAM_TO_BUMPER_M, control_dt_s=DT, full_brake_decel_mps2=FULL_BRAKE_MPS2)
+CTX = PolicyContext(cameras={"front": CameraModel(F_PX, 320.0, 0.0, CAM_TO_BUMPER_M),
+                             "side": CameraModel(F_PX, 320.0, SIDE_YAW_RAD, SIDE_CAM_TO_BUMPER_M)},
+                    control_dt_s=DT, full_brake_decel_mps2=FULL_BRAKE_MPS2)
+
+
+class FakeBumper:
+    """The car's bumper x for a map handle, set by the test."""
+
+    x_m = -100.0
+
+    def __call__(self) -> float:
+        return self.x_m
+
+
+BUMPER = FakeBumper()
 
 
 def make(name: str, **cfg):
-    return POLICIES.get(name)(PolicyConfig(name=name, **cfg), CTX)
+    factory = POLICIES.get(name)
+    extra = {"map_handle": MapHandle(HdMap((0.0,)), BUMPER)} if factory.uses_map else {}
+    return factory(PolicyConfig(name=name, **cfg), CTX, **extra)
 
 
 def det(h_px: float = 30.0, conf: float = 0.9, cls: str = "stop_sign", camera: str = "front", truncated: bool = False) -> Detection:
@@ -23,7 +44,10 @@ def det(h_px: float = 30.0, conf: float = 0.9, cls: str = "stop_sign", camera: s
 
 
 def obs(speed: float = 20.0, front=(), side=(), stop_line: float = 100.0, t: float = 0.0) -> Observation:
-    return Observation(t, speed, {"front": list(front), "side": list(side)}, stop_line)
+    """An observation; `stop_line` is where the map-reading autopilot's bumper is (perceiving
+    policies never see it)."""
+    BUMPER.x_m = -stop_line
+    return Observation(t, speed, {"front": list(front), "side": list(side)})
 
 
 def expected_estimate(h_px: float, cfg: PolicyConfig = PolicyConfig()) -> float:
@@ -221,3 +245,120 @@ def test_autopilot_ignores_detections():
     p = make("autopilot")
     close = [det(h_px=200.0)]
     assert p.decide(obs(speed=20.0, stop_line=200.0, front=close, side=[det(camera="side")])).brake == 0.0
+
+
+# ---- the braking gate --------------------------------------------------------------------
+
+def _h_px_at(stop_line_m: float, cam_to_bumper_m: float = CAM_TO_BUMPER_M) -> float:
+    """Front box height of a stop sign whose stop line is `stop_line_m` ahead of the bumper."""
+    return 0.762 * F_PX / (stop_line_m + 1.0 + cam_to_bumper_m)
+
+
+@pytest.mark.parametrize("name", ["baseline", "adjusted", "side_camera", "combined"])
+def test_perceiving_policies_ignore_a_stop_sign_beyond_the_trigger_distance(name):
+    p = make(name, trigger_dist_m=40.0)
+    far = det(h_px=_h_px_at(60.0), conf=0.95)
+    for _ in range(3):
+        assert p.decide(obs(speed=20.0, front=[far])).brake == 0.0
+    assert p.decide(obs(speed=20.0, front=[det(h_px=_h_px_at(39.0))])).brake > 0.0
+
+
+@pytest.mark.parametrize("name", ["baseline", "adjusted", "side_camera", "combined"])
+def test_with_no_gate_a_far_stop_sign_is_acted_on_at_once(name):
+    p = make(name, trigger_dist_m=None)
+    assert p.decide(obs(speed=20.0, front=[det(h_px=_h_px_at(90.0))])).brake > 0.0
+
+
+def test_trigger_none_and_inf_mean_no_gate():
+    from avsim.config import SimConfig, with_overrides
+
+    assert with_overrides(SimConfig(), {"policy": {"trigger_dist_m": "none"}}).policy.trigger_dist_m is None
+    assert with_overrides(SimConfig(), {"policy": {"trigger_dist_m": math.inf}}).policy.trigger_dist_m is None
+    assert SimConfig().policy.trigger_dist_m == 40.0
+
+
+def test_the_gate_picks_a_gated_box_behind_a_more_confident_far_one():
+    p = make("baseline", trigger_dist_m=40.0)
+    assert p.decide(obs(front=[det(h_px=_h_px_at(80.0), conf=0.99), det(h_px=_h_px_at(30.0), conf=0.6)])).brake > 0.0
+
+
+def test_side_camera_gate_uses_the_side_cameras_own_pinhole_estimate():
+    p = make("side_camera", trigger_dist_m=40.0)
+    cam = CTX.cameras["side"]
+    # A side-camera box whose centre sits on its optical axis: the sign is Z cos(20 deg) ahead.
+    def side_det(ahead_m: float) -> Detection:
+        depth = ahead_m / math.cos(SIDE_YAW_RAD)
+        h = 0.762 * F_PX / depth
+        return Detection("stop_sign", 0.9, (320.0 - h / 2, 100.0, 320.0 + h / 2, 100.0 + h), "side")
+    beyond = side_det(40.0 + 1.0 + SIDE_CAM_TO_BUMPER_M + 2.0)  # stop line 42 m ahead of the bumper
+    within = side_det(40.0 + 1.0 + SIDE_CAM_TO_BUMPER_M - 2.0)  # 38 m
+    assert p.stop_line_estimate_m(beyond) == pytest.approx(42.0)
+    assert cam.sign_ahead_m(within, 0.762) == pytest.approx(40.0 + 1.0 + SIDE_CAM_TO_BUMPER_M - 2.0)
+    assert p.decide(obs(side=[beyond])).brake == 0.0
+    assert p.decide(obs(side=[within])).brake == 1.0
+
+
+def test_camera_model_turns_the_box_offset_into_distance_ahead():
+    # A sign 30 m ahead and 5 m to the right of a camera yawed 20 deg right.
+    cam = CameraModel(F_PX, 320.0, SIDE_YAW_RAD, 0.0)
+    ahead, right = 30.0, 5.0
+    depth = ahead * math.cos(SIDE_YAW_RAD) + right * math.sin(SIDE_YAW_RAD)  # along the optical axis
+    across = -ahead * math.sin(SIDE_YAW_RAD) + right * math.cos(SIDE_YAW_RAD)  # right of it
+    u = 320.0 + F_PX * across / depth
+    h = 0.762 * F_PX / depth
+    box = Detection("stop_sign", 0.9, (u - h / 2, 100.0, u + h / 2, 100.0 + h), "side")
+    assert cam.sign_ahead_m(box, 0.762) == pytest.approx(ahead, rel=1e-9)
+
+
+# ---- study_stack ---------------------------------------------------------------------------
+
+def _study_det(d_m: float, camera: str = "front", u_px: float = 400.0, conf: float = 0.9) -> Detection:
+    """A box whose pinhole depth with the stack's assumed 1.0 m sign is `d_m`."""
+    h = 1.0 * F_PX / d_m
+    return Detection("stop_sign", conf, (u_px - h / 2, 100.0, u_px + h / 2, 100.0 + h), camera)
+
+
+def test_study_stack_brakes_by_its_literal_front_rule_below_40_m():
+    p = make("study_stack")
+    assert p.decide(obs(speed=20.0, front=[_study_det(45.0)])).brake == 0.0
+    d = p.decide(obs(speed=20.0, front=[_study_det(30.0)]))
+    assert d.brake == pytest.approx(min(20.0**2 / (2 * 30.0) / 9.81 * 0.6, 0.8))
+    assert p.decide(obs(speed=23.0, front=[_study_det(8.0)])).brake == 0.8  # capped
+
+
+def test_study_stack_counts_only_the_right_half_of_the_front_image():
+    p = make("study_stack")
+    assert p.decide(obs(speed=20.0, front=[_study_det(30.0, u_px=200.0)])).brake == 0.0
+
+
+def test_study_stack_side_camera_acts_only_after_braking_began_with_the_last_front_estimate():
+    p = make("study_stack")
+    assert p.decide(obs(speed=20.0, side=[_study_det(10.0, camera="side")])).brake == 0.0
+    p.decide(obs(speed=20.0, front=[_study_det(30.0)]))
+    d = p.decide(obs(speed=18.0, side=[_study_det(10.0, camera="side")]))
+    assert d.brake == pytest.approx(min(18.0**2 / (2 * 30.0) / 9.81 * 0.8, 1.0))
+
+
+def test_study_stack_coasts_when_neither_camera_sees_the_sign():
+    p = make("study_stack")
+    assert p.decide(obs(speed=20.0, front=[_study_det(30.0)])).brake > 0.0
+    assert p.decide(obs(speed=19.0)).brake == 0.0
+
+
+def test_study_stack_sign_height_is_a_parameter():
+    p = make("study_stack", study_sign_height_m=0.762)
+    box = _study_det(30.0)  # 1.0 m sign at 30 m = 0.762 m sign at 22.9 m
+    d = p.decide(obs(speed=20.0, front=[box]))
+    assert d.required_decel_mps2 == pytest.approx(20.0**2 / (2 * 30.0 * 0.762))
+
+
+# ---- privileged data -----------------------------------------------------------------------
+
+def test_only_the_autopilot_is_built_with_the_map():
+    assert [name for name in POLICIES.names() if POLICIES.get(name).uses_map] == ["autopilot"]
+
+
+def test_an_observation_carries_no_map_data():
+    import dataclasses
+
+    assert {f.name for f in dataclasses.fields(Observation)} == {"time_s", "speed_mps", "detections"}
