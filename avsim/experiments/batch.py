@@ -45,6 +45,7 @@ from avsim.config import SimConfig
 from avsim.control.policies import STOP_CLASS
 from avsim.errors import ConfigError
 from avsim.metrics import StepRecord
+from avsim.workers import init_worker, terminate_workers
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
 _TRACE_DECIMALS = 4
@@ -207,10 +208,18 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> 
             yield index, execute(spec, root)
         return
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=apply_env, initargs=(worker_env(workers),)) as pool:
+    # The workers die with this process (a SIGKILL leaves no orphans) and ignore Ctrl-C, which
+    # this process handles for them: `avsim.workers`.
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=init_worker,
+                               initargs=(worker_env(workers), os.getpid()))
+    finished = False
+    try:
         futures = {pool.submit(execute, spec, root): index for index, spec in enumerate(specs)}
-        try:
-            for future in as_completed(futures):
-                yield futures[future], future.result()
-        finally:
-            pool.shutdown(cancel_futures=True)
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+        finished = True
+    finally:
+        if finished:
+            pool.shutdown()
+        else:  # stopped early (Ctrl-C, an error, the caller closed us): the runs in flight are not awaited
+            terminate_workers(pool)
