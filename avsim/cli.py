@@ -9,6 +9,7 @@ What the user sees when something stops it, always one line on stderr:
 - an AvsimError (bad input, a bad environment): "avsim: error: ...", exit 2 (a PhysicsError 3,
   every run of a batch failed 1);
 - Ctrl-C: "avsim: interrupted; ...", saying what was kept and how to resume, exit 130;
+- an OSError (a full disk, say): "avsim: error: ...", naming the file, exit 1;
 - anything else, a bug: "avsim: internal error: ...", with the path of a file holding the full
   traceback, exit 1.
 `--debug` (anywhere on the command line) prints the full traceback as well.
@@ -425,6 +426,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return _report("avsim: interrupted; every file is written whole or not at all, so none is half-written",
                        Interrupted.exit_code, debug)
+    except OSError as exc:  # the machine's: a full disk, a folder removed under a running command
+        where = _save_traceback()
+        return _report(f"avsim: error: {exc.strerror or exc}" + (f": '{exc.filename}'" if exc.filename else "")
+                       + f" (full traceback in {where}, or rerun with --debug)", 1, debug)
     except Exception as exc:  # noqa: BLE001 - the one place that turns a bug into one line and a file
         where = _save_traceback()
         return _report(f"avsim: internal error: {type(exc).__name__}: {_one_line(str(exc))} (a bug in avsim; "

@@ -153,6 +153,9 @@ def _check_can_create_in(folder: Path, flag: str, text: str) -> None:
 # ---- temporary files -----------------------------------------------------------------------
 
 _HOST = re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname()) or "host"
+# Every temporary name this process handed out that may still exist (a renamed one no longer
+# does), so a worker told to stop can delete its own before it exits: `remove_own_temporaries`.
+_OWN_TEMPORARIES: set[Path] = set()
 
 
 def temporary_path(path: str | os.PathLike, suffix: str = "") -> Path:
@@ -163,7 +166,20 @@ def temporary_path(path: str | os.PathLike, suffix: str = "") -> Path:
     """
     path = Path(path)
     remove_stale_temporaries(path)
-    return path.with_name(f".{path.name}.{os.getpid()}@{_HOST}.{secrets.token_hex(6)}.tmp{suffix}")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}@{_HOST}.{secrets.token_hex(6)}.tmp{suffix}")
+    _OWN_TEMPORARIES.add(tmp)
+    return tmp
+
+
+def remove_own_temporaries() -> None:
+    """Delete every temporary file this process is still writing: for a process about to exit
+    without unwinding (a terminated or orphaned worker), so it leaves no half-written file."""
+    for tmp in list(_OWN_TEMPORARIES):
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        _OWN_TEMPORARIES.discard(tmp)
 
 
 def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
@@ -250,3 +266,5 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    finally:
+        _OWN_TEMPORARIES.discard(tmp)

@@ -11,7 +11,9 @@ forked the worker exits, which in a `ProcessPoolExecutor` is not the parent's de
     terminate_workers(pool)          # Ctrl-C: stop the runs in flight now, not when they finish
 
 Workers ignore SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent
-alone decides what to keep and stops its workers (else each worker prints a traceback).
+alone decides what to keep and stops its workers (else each worker prints a traceback). A
+worker that is stopped (SIGTERM, from `terminate_workers`) or orphaned deletes the temporary
+files it was writing (`avsim.outputs.remove_own_temporaries`) and exits at once.
 """
 
 from __future__ import annotations
@@ -20,12 +22,17 @@ import os
 import signal
 import threading
 import time
+import typing
 from concurrent.futures import ProcessPoolExecutor
+
+from avsim.outputs import remove_own_temporaries
 
 # How often a worker checks that its parent is alive [s]; a worker outlives it by at most this.
 PARENT_POLL_S = 1.0
-# Exit status of a worker that ended because its parent was gone (128 + SIGHUP, like a hang-up).
+# Exit status of a worker that ended because its parent was gone (128 + SIGHUP, like a hang-up),
+# and of one stopped by SIGTERM (128 + 15).
 ORPHAN_EXIT_STATUS = 129
+TERMINATED_EXIT_STATUS = 143
 
 _watching: set[int] = set()
 _watch_lock = threading.Lock()
@@ -36,7 +43,15 @@ def init_worker(env: dict[str, str], parent_pid: int) -> None:
     and the parent watched."""
     os.environ.update(env)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Not an exception: the pool's worker loop would catch it and carry on with the next task.
+    signal.signal(signal.SIGTERM, lambda signum, frame: exit_now(TERMINATED_EXIT_STATUS))
     watch_parent(parent_pid)
+
+
+def exit_now(status: int) -> typing.NoReturn:
+    """End this worker at once, without unwinding, after deleting the temporary files it was writing."""
+    remove_own_temporaries()
+    os._exit(status)
 
 
 def watch_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
@@ -49,14 +64,13 @@ def watch_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
             return
         _watching.add(parent_pid)
     if os.getppid() != parent_pid:  # already gone before the thread could start
-        os._exit(ORPHAN_EXIT_STATUS)
+        exit_now(ORPHAN_EXIT_STATUS)
 
     def _watch() -> None:
         while os.getppid() == parent_pid:
             time.sleep(poll_s)
-        # No cleanup: the parent that would receive this worker's results is gone, and its
-        # files are written under temporary names that the next run removes.
-        os._exit(ORPHAN_EXIT_STATUS)
+        # The parent that would receive this worker's results is gone: nothing is worth finishing.
+        exit_now(ORPHAN_EXIT_STATUS)
 
     threading.Thread(target=_watch, name="avsim-parent-watch", daemon=True).start()
 

@@ -230,6 +230,14 @@ def test_a_bug_is_one_line_with_the_path_of_its_full_traceback(monkeypatch, caps
     assert "Traceback" in text and "ValueError: something inside" in text
 
 
+def test_an_os_error_names_its_file_and_is_not_called_a_bug(monkeypatch, capsys):
+    _patched_command(monkeypatch, OSError(28, "No space left on device", "/data/out.csv"))
+    assert cli.main(["bench"]) == 1
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("avsim: error: No space left on device: '/data/out.csv'")
+    Path(lines[0].split("full traceback in ")[1].split(",")[0]).unlink()
+
+
 def test_debug_prints_the_full_traceback(monkeypatch, capsys):
     _patched_command(monkeypatch, ValueError("boom"))
     assert cli.main(["bench", "--debug"]) == 1

@@ -149,6 +149,35 @@ def test_ctrl_c_during_a_sweep_says_how_to_resume_and_resuming_gives_the_same_re
     assert _temporaries(out) == []
 
 
+def test_ctrl_c_during_reproduce_stops_its_workers_and_leaves_no_temporary_recording(tmp_path):
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text("""
+title = "t"
+seeds = 4
+[defaults]
+scenario = { town = "town07", placement = "standard", start_dist_m = 100 }
+perception = { kind = "oracle" }
+[[cells]]
+name = "clean sign, baseline"
+""")
+    log, root = tmp_path / "stderr.log", tmp_path / "results"
+    proc = _start(["reproduce", "--experiments", str(experiment), "--workers", "2", "--no-progress", "--out", str(root)], log)
+
+    def one_finished() -> bool:
+        runs = list(root.glob("*/runs.jsonl"))
+        return bool(runs) and runs[0].read_text().count("\n") >= 1
+
+    _wait_until(one_finished, proc, "its first run finished", log)
+    workers = _children(proc.pid)
+    os.killpg(proc.pid, signal.SIGINT)
+    assert proc.wait(timeout=TIMEOUT_S) == 130
+    err = log.read_text()
+    assert len(err.splitlines()) == 1 and "finished run(s) are in" in err, err
+    assert _wait_gone(workers, 5.0) == []
+    recordings = [p.name for p in root.rglob("*") if p.is_file() and p.suffix != ".jsonl" and p.suffix != ".toml"]
+    assert all(name.endswith(".rrd") and not name.startswith(".") for name in recordings), recordings
+
+
 def _kill_sweep_and_time_its_workers(tmp_path: Path, backend_args: list[str], worker_pids) -> None:
     """SIGKILL a sweep's main process once its runs are under way; its workers must be gone within 10 s."""
     sweep = tmp_path / "long.toml"
