@@ -57,7 +57,7 @@ def exit_now(status: int) -> typing.NoReturn:
 def watch_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
     """End this process (os._exit) within `poll_s` of `parent_pid` ceasing to be its parent.
 
-    Idempotent per parent: a reused worker (Ray's) starts one thread, however many tasks it runs.
+    Idempotent per parent: called again (by a worker that is initialised twice), it starts no second thread.
     """
     with _watch_lock:
         if parent_pid in _watching:

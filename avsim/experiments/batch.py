@@ -11,7 +11,9 @@ becomes a `failed` record carrying the error, and the batch goes on.
 Backends (`BACKENDS`); both run `execute(spec, root)` for each spec:
     local   this process (workers 1) or a pool of `workers` `spawn`ed processes on this
             machine; each builds its own MuJoCo model and EGL context (an OpenGL context
-            must never cross a fork). A worker process that dies stops the batch.
+            must never cross a fork). A worker process that dies stops the batch. The
+            workers exit when this process dies, and a batch stopped early (Ctrl-C)
+            stops them at once rather than waiting for their runs (`avsim.workers`).
     ray     Ray tasks on a cluster, or on a local one of `workers` CPUs
             (`avsim.experiments.ray_backend`, an optional extra: pip install 'avsim[ray]').
 Records, `on_record` and the progress bar are one code path for both.
@@ -194,11 +196,6 @@ def worker_env(workers: int) -> dict[str, str]:
     if "LP_NUM_THREADS" in os.environ:
         return {}
     return {"LP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // max(1, workers)))}
-
-
-def apply_env(env: dict[str, str]) -> None:
-    """Set `env` in this process's environment: a pool's initializer, before any GL context exists."""
-    os.environ.update(env)
 
 
 def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> Iterator[tuple[int, dict[str, Any]]]:

@@ -15,8 +15,10 @@ key may also be written as a TOML dotted key (`scenario.speed_kmh = [...]`).
 
 Everything is checked when the file is loaded, before any run starts: unknown top-level
 and config keys, empty lists, repeated values, wrong types and out-of-range values (by the
-config dataclasses), registry names (town, placement, policy, perception) and sign
-textures, and then every combination's full config (for limits that tie two keys together).
+config dataclasses), registry names (town, placement, policy, perception), sign textures
+(each decoded as the scene decodes it; two names of one file, such as "clean" and
+"stop_sign", are refused), and then every combination's full config (for limits that tie
+two keys together).
 Each error is one `ConfigError` line naming the file, the place in it and the key.
 
 `run_sweep` runs the specs through `avsim.experiments.batch.run_batch`, on its local pool of
@@ -30,7 +32,9 @@ It writes into one folder:
     safety_map.png    the figure
 
 With `resume`, runs whose config hash already has an `ok` record in results.jsonl are not
-run again; failed runs are. The hash is the run's whole config, so growing the grid (a new
+run again; failed runs are. A results.jsonl that is not avsim's, or has a corrupt line, is
+refused before anything runs (`avsim.experiments.results_file.read_records`). Ctrl-C ends
+the sweep with `Interrupted`, naming the finished runs and the command that resumes it. The hash is the run's whole config, so growing the grid (a new
 speed) reuses every finished run. A sweep killed at any moment (even mid-write: a torn last
 line is dropped before new records are appended) resumes to the same results.jsonl as a run
 never stopped, `wall_s` aside.
