@@ -10,7 +10,7 @@ _OUTCOME_DETAIL = {
     "stopped_past_line": "{past_line:.1f} m past the stop line, {sign:.1f} m before the sign",
     "ran_past_sign": "{past:.1f} m beyond the sign, {state}; braking began {braked_at:.1f} m before it",
     "never_braked": "{past:.1f} m beyond the sign, never braked",
-    "timed_out_before_sign": "the {limit:g} s time limit ended the run {sign:.1f} m before the sign, not stopped; {braked}",
+    "timed_out_before_sign": "the {limit:g} s time limit ended the run {sign:.1f} m before the sign; {braked}",
 }
 
 
@@ -21,7 +21,7 @@ def outcome_line(result: RunResult) -> str:
         line=result.margin_m, past_line=-result.margin_m, sign=result.sign_margin_m, past=-result.sign_margin_m,
         limit=result.config["loop"]["max_time_s"], braked_at=braked_at if braked_at is not None else float("nan"),
         state="stopped" if result.time_to_stop_s is not None else "still rolling",
-        braked=f"braking since {braked_at:.1f} m before the sign" if braked_at is not None else "never braked")
+        braked=f"still rolling, braking since {braked_at:.1f} m before the sign" if braked_at is not None else "never braked")
     return f"{result.outcome}: {detail}"
 
 
