@@ -103,11 +103,12 @@ def check_output_file(path: str | os.PathLike, flag: str, *, suffix: str | None 
         raise OutputError(f"{flag} needs a file name, got '{text}'")
     p = Path(text)
     if text.endswith(os.sep) or p.name in ("", ".", ".."):
-        raise OutputError(f"{flag} '{text}' names a folder; give a file name, e.g. {p / ('out' + (suffix or '.json'))}")
+        raise OutputError(f"{flag} '{text}' names a folder; give a file name" + (f", e.g. {p / ('out' + suffix)}" if suffix else ""))
     if suffix is not None and p.suffix.lower() != suffix:
         raise OutputError(f"{flag} expects a path ending in {suffix}, got '{text}'")
     if p.is_dir():
-        raise OutputError(f"{flag} '{text}' is a folder; give a file name inside it, e.g. {p / ('out' + (suffix or p.suffix or '.json'))}")
+        ending = suffix or p.suffix
+        raise OutputError(f"{flag} '{text}' is a folder; give a file name inside it" + (f", e.g. {p / ('out' + ending)}" if ending else ""))
     if p.exists() and not p.is_file():
         raise OutputError(f"{flag} '{text}' exists and is not a regular file (a device or a pipe); give another path")
     _check_can_create_in(p.parent, flag, text)

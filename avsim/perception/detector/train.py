@@ -32,6 +32,7 @@ from torch.utils.data import DataLoader
 from tqdm import tqdm
 
 from avsim.errors import AvsimError, ConfigError, Interrupted
+from avsim.outputs import check_declared_outputs
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.data import SignDataset, collate
 from avsim.perception.detector.ema import ModelEMA
@@ -212,6 +213,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_train_arguments(parser)
     args = parser.parse_args(argv)
     try:
+        check_declared_outputs(args)  # --out, before any work, as `avsim detector train` checks it
         return run_from_args(args)
     except AvsimError as exc:
         print(f"avsim: error: {exc}", file=sys.stderr)
