@@ -1,7 +1,18 @@
-"""Command-line entry point: `avsim run`, `avsim snapshot` and `avsim bench`.
+"""Command-line entry point: `avsim run`, `avsim snapshot`, `avsim sweep`, ... (`avsim --help`).
 
-Every user error (an AvsimError) is printed as one line on stderr, with a non-zero
-exit code (2 for bad input) and no output file written.
+`main` is the one error boundary, and runs in this order for every subcommand:
+1. the renderer MUJOCO_GL names is checked (`avsim.sensors.gl_backend`), before MuJoCo is imported;
+2. every output path the subcommand declared (`avsim.outputs.add_output_argument`) is checked,
+   before any work starts;
+3. the subcommand runs.
+What the user sees when something stops it, always one line on stderr:
+- an AvsimError (bad input, a bad environment): "avsim: error: ...", exit 2 (a PhysicsError 3,
+  every run of a batch failed 1);
+- Ctrl-C: "avsim: interrupted; ...", saying what was kept and how to resume, exit 130;
+- an OSError (a full disk, say): "avsim: error: ...", naming the file, exit 1;
+- anything else, a bug: "avsim: internal error: ...", with the path of a file holding the full
+  traceback, exit 1.
+`--debug` (anywhere on the command line) prints the full traceback as well.
 """
 
 from __future__ import annotations
@@ -9,12 +20,18 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 import tomllib
+import traceback
+import typing
 from pathlib import Path
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
-from avsim.errors import AvsimError, ConfigError
+from avsim.config import check_seed
+from avsim.errors import AvsimError, ConfigError, Interrupted
+from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs
+from avsim.sensors.gl_backend import check_gl_backend
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, Any]:
@@ -102,7 +119,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4)
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
-    if args.json:
+    if args.json is not None:
         write_json_atomic(args.json, result.to_json_dict())
         print(f"  result written to {args.json}")
     return 0
@@ -190,7 +207,7 @@ def _add_detector_commands(sub) -> None:
     detector = sub.add_parser("detector", help="make data for, train and evaluate the sign detector")
     dsub = detector.add_subparsers(dest="detector_command", required=True)
     data = dsub.add_parser("make-data", help="render labelled sign images (boxes from segmentation)")
-    data.add_argument("--out", default="data/signs", help="dataset directory (default data/signs)")
+    add_output_argument(data, "--out", kind=FOLDER, default="data/signs", help="dataset directory (default data/signs)")
     data.add_argument("--train", type=int, default=6000, help="training images")
     data.add_argument("--val", type=int, default=1000, help="validation images (held-out town seed and lighting)")
     data.add_argument("--images-per-scene", type=int, default=25)
@@ -209,7 +226,7 @@ def _add_detector_commands(sub) -> None:
 
     export = dsub.add_parser("export", help="strip a training checkpoint to deployable weights (e.g. models/sign_detector.pt)")
     export.add_argument("--checkpoint", required=True, help="checkpoint written by `avsim detector train`")
-    export.add_argument("--out", default="models/sign_detector.pt", help="weights file to write")
+    add_output_argument(export, "--out", kind=FILE, default="models/sign_detector.pt", help="weights file to write")
     export.set_defaults(func=_cmd_export)
 
     evaluate = dsub.add_parser("eval", help="score weights on the held-out split; writes report.md and a plot")
@@ -218,7 +235,7 @@ def _add_detector_commands(sub) -> None:
     evaluate.add_argument("--split", default="val", choices=("val", "train"))
     evaluate.add_argument("--conf", type=float, default=0.5, help="confidence threshold for recall and false positives")
     evaluate.add_argument("--limit", type=int, help="score only the first N images")
-    evaluate.add_argument("--out", default="results/detector_eval", help="report directory")
+    add_output_argument(evaluate, "--out", kind=FOLDER, default="results/detector_eval", help="report directory")
     evaluate.add_argument("--no-progress", action="store_true", help="no progress bar")
     evaluate.set_defaults(func=_cmd_eval)
 
@@ -284,7 +301,8 @@ def _add_attack_commands(sub) -> None:
     asub = attack.add_subparsers(dest="attack_command", required=True)
     gen = asub.add_parser("generate", help="optimise one texture against the shipped detector")
     gen.add_argument("--method", required=True, help="chen, eykholt, lu_v2, lu_v3 or yang")
-    gen.add_argument("--out", required=True, help="PNG to write (a JSON record is written beside it)")
+    add_output_argument(gen, "--out", kind=FILE, suffix=".png", companions=(".json",), required=True,
+                        help="PNG to write (a JSON record is written beside it)")
     gen.add_argument("--seed", type=int, default=0)
     gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
     gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
@@ -299,7 +317,7 @@ def _add_attack_commands(sub) -> None:
     ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
     ev.add_argument("--town", default="town07")
     ev.add_argument("--placements", default="near,standard,far")
-    ev.add_argument("--out", default="results/attack_eval", help="report directory")
+    add_output_argument(ev, "--out", kind=FOLDER, default="results/attack_eval", help="report directory")
     ev.set_defaults(func=_cmd_attack_eval)
     sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")
     sw.add_argument("--method", required=True)
@@ -307,21 +325,30 @@ def _add_attack_commands(sub) -> None:
     sw.add_argument("--steps", type=int, default=100, help="optimisation steps per budget")
     sw.add_argument("--seed", type=int, default=0)
     sw.add_argument("--weights", default="")
-    sw.add_argument("--out", default="results/attack_sweep")
+    add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
     sw.set_defaults(func=_cmd_attack_sweep)
 
 
+class _OneLineErrors(argparse.ArgumentParser):
+    """argparse, with its own errors (an unknown flag, a bad int) in one line, as avsim's are."""
+
+    def error(self, message: str) -> typing.NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
+    parser = _OneLineErrors(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="drive one scenario and print its summary")
     _add_scenario_flags(run)
     run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, autopilot")
     run.add_argument("--perception", help="perception: detector (trained network on RGB) or oracle (ground-truth boxes)")
-    run.add_argument("--json", help="write the result record to this JSON file")
-    run.add_argument("--rrd", help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
-    run.add_argument("--mp4", help="write a video of the front camera with the detections, speed and brake to this .mp4 file")
+    add_output_argument(run, "--json", kind=FILE, help="write the result record to this JSON file")
+    add_output_argument(run, "--rrd", kind=FILE,
+                        help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
+    add_output_argument(run, "--mp4", kind=FILE, suffix=".mp4",
+                        help="write a video of the front camera with the detections, speed and brake to this .mp4 file")
     run.add_argument("--config", help="experiment file (experiments/*.toml): run one of its cells; the flags above apply on top")
     run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell)")
     run.set_defaults(func=_cmd_run)
@@ -333,7 +360,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
     rep.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
-    rep.add_argument("--out", default="results", help="folder in which the timestamped results folder is made")
+    add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -342,7 +369,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
                                        "and safety_map.png")
     swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
-    swp.add_argument("--out", required=True, help="results folder")
+    add_output_argument(swp, "--out", kind=FOLDER, required=True, help="results folder")
     swp.add_argument("--workers", type=int,
                      help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                           "with --address, at most this many runs in flight (default: the cluster's CPUs)")
@@ -358,7 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     _add_scenario_flags(snap)
     snap.add_argument("--dist-m", type=float, default=30.0, help="front bumper to stop line [m]")
-    snap.add_argument("--out", default="snapshot", help="output prefix; writes PREFIX_front.png and PREFIX_side.png")
+    add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png"), default="snapshot",
+                        help="output prefix; writes PREFIX_front.png and PREFIX_side.png")
     snap.set_defaults(func=_cmd_snapshot)
 
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
@@ -366,16 +394,70 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
     _add_attack_commands(sub)
+    parser.add_argument("--debug", action="store_true", help="on an error, print the full traceback too")
+    for _, child in iter_parsers(parser):
+        if child is not parser:
+            # SUPPRESS: a subcommand without --debug must not reset the top-level flag.
+            child.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
     return parser
 
 
+def iter_parsers(parser: argparse.ArgumentParser, name: str = "avsim") -> Iterator[tuple[str, argparse.ArgumentParser]]:
+    """Every parser of the command line, subcommands included: ("avsim attack generate", parser), ..."""
+    yield name, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub_name, child in action.choices.items():
+                yield from iter_parsers(child, f"{name} {sub_name}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the `avsim` command line; returns the exit status (see the module docstring)."""
     args = build_parser().parse_args(argv)
+    debug = bool(getattr(args, "debug", False))
     try:
+        check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
+        check_declared_outputs(args)  # before any work: a bad path never costs a finished run
+        if getattr(args, "seed", None) is not None:  # every subcommand's --seed, one range
+            check_seed(args.seed, "--seed")
         return args.func(args)
+    except Interrupted as exc:
+        return _report(f"avsim: interrupted; {exc}", exc.exit_code, debug)
     except AvsimError as exc:
-        print(f"avsim: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        return _report(f"avsim: error: {exc}", exc.exit_code, debug)
+    except KeyboardInterrupt:
+        return _report("avsim: interrupted; every file is written whole or not at all, so none is half-written",
+                       Interrupted.exit_code, debug)
+    except OSError as exc:  # the machine's: a full disk, a folder removed under a running command
+        where = _save_traceback()
+        return _report(f"avsim: error: {exc.strerror or exc}" + (f": '{exc.filename}'" if exc.filename else "")
+                       + f" (full traceback in {where}, or rerun with --debug)", 1, debug)
+    except Exception as exc:  # noqa: BLE001 - the one place that turns a bug into one line and a file
+        where = _save_traceback()
+        return _report(f"avsim: internal error: {type(exc).__name__}: {_one_line(str(exc))} (a bug in avsim; "
+                       f"full traceback in {where}, or rerun with --debug)", 1, debug)
+
+
+def _report(message: str, status: int, debug: bool) -> int:
+    if debug:
+        traceback.print_exc()
+    print(_one_line(message), file=sys.stderr)
+    return status
+
+
+def _one_line(text: str) -> str:
+    return " ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def _save_traceback() -> str:
+    """Write the exception being handled, with its traceback, to a new file in the temp folder; its path."""
+    try:
+        fd, path = tempfile.mkstemp(prefix="avsim-traceback-", suffix=".txt")
+        with os.fdopen(fd, "w") as handle:
+            handle.write(f"avsim {' '.join(sys.argv[1:])}\n\n{traceback.format_exc()}")
+        return path
+    except OSError:
+        return "nowhere (the temp folder is not writable)"
 
 
 if __name__ == "__main__":

@@ -34,6 +34,16 @@ def _require(ok: bool, message: str) -> None:
         raise ConfigError(message)
 
 
+# A seed seeds numpy's default_rng, torch.Generator.manual_seed and OpenCV alike: 0 .. 2**32 - 1
+# is the range every one of them takes as it is.
+MAX_SEED = 2**32 - 1
+
+
+def check_seed(seed: int, name: str) -> None:
+    """A one-line ConfigError unless `seed` is an int in 0 .. MAX_SEED; name: the key or flag, for the message."""
+    _require(type(seed) is int and 0 <= seed <= MAX_SEED, f"{name} must be an integer in 0 .. {MAX_SEED} (2**32 - 1), got {seed!r}")
+
+
 @dataclass(frozen=True)
 class ScenarioConfig:
     """Where and how fast the car drives.
@@ -70,7 +80,8 @@ class ScenarioConfig:
         _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
         _require(0 <= self.start_speed_kmh <= 200, f"scenario.start_speed_kmh must be in [0, 200], got {self.start_speed_kmh}")
         _require(20 <= self.start_dist_m <= 300, f"scenario.start_dist_m must be in [20, 300] (the approach road is 300 m), got {self.start_dist_m}")
-        _require(self.seed >= 0 and self.layout_seed >= 0, f"scenario.seed and scenario.layout_seed must be >= 0, got {self.seed}, {self.layout_seed}")
+        check_seed(self.seed, "scenario.seed")
+        check_seed(self.layout_seed, "scenario.layout_seed")
         _require(0 <= self.start_jitter_m <= 10, f"scenario.start_jitter_m must be in [0, 10], got {self.start_jitter_m}")
         _require(5 <= self.sun_elevation_deg <= 90, f"scenario.sun_elevation_deg must be in [5, 90], got {self.sun_elevation_deg}")
         _require(0.1 <= self.sun_intensity <= 2.0, f"scenario.sun_intensity must be in [0.1, 2], got {self.sun_intensity}")
@@ -179,7 +190,9 @@ class LoopConfig:
     max_time_s: float = 60.0
 
     def __post_init__(self) -> None:
-        _require(0 < self.physics_dt_s <= 0.01, f"loop.physics_dt_s must be in (0, 0.01], got {self.physics_dt_s}")
+        # Below 0.1 ms a control step would be over 1000 physics steps: no car needs it, and a
+        # tiny dt (1e-300) would make the step count absurd.
+        _require(1e-4 <= self.physics_dt_s <= 0.01, f"loop.physics_dt_s must be in [0.0001, 0.01] s, got {self.physics_dt_s}")
         _require(0 < self.control_dt_s <= 0.1, f"loop.control_dt_s must be in (0, 0.1] (CARLA warns above 0.1 s), got {self.control_dt_s}")
         ratio = self.control_dt_s / self.physics_dt_s
         _require(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1,
@@ -281,9 +294,13 @@ class PolicyConfig:
         _require(0 < self.conf_threshold < 1, f"policy.conf_threshold must be in (0, 1), got {self.conf_threshold}")
         _require(0 < self.baseline_brake <= 1, f"policy.baseline_brake must be in (0, 1], got {self.baseline_brake}")
         _require(0.6 <= self.brake_multiplier <= 1.0, f"policy.brake_multiplier (M) must be in [0.6, 1], got {self.brake_multiplier}")
-        _require(self.a_max_mps2 > 0, f"policy.a_max_mps2 must be > 0, got {self.a_max_mps2}")
-        _require(self.sign_height_m > 0, f"policy.sign_height_m must be > 0, got {self.sign_height_m}")
-        _require(self.study_sign_height_m > 0, f"policy.study_sign_height_m must be > 0, got {self.study_sign_height_m}")
+        # Decelerations up to 20 m/s^2 (about 2 g, a tyre friction of 2); sign heights 0.1-3 m.
+        _require(1 <= self.a_max_mps2 <= 20, f"policy.a_max_mps2 must be in [1, 20] m/s^2, got {self.a_max_mps2}")
+        _require(0.1 <= self.sign_height_m <= 3, f"policy.sign_height_m must be in [0.1, 3] m, got {self.sign_height_m}")
+        _require(0.1 <= self.study_sign_height_m <= 3,
+                 f"policy.study_sign_height_m must be in [0.1, 3] m, got {self.study_sign_height_m}")
+        _require(0 <= self.stop_line_before_sign_m <= 20,
+                 f"policy.stop_line_before_sign_m must be in [0, 20] m, got {self.stop_line_before_sign_m}")
         _require(self.trigger_dist_m is None or 0 < self.trigger_dist_m <= 1000,
                  f"policy.trigger_dist_m must be in (0, 1000] m, or none for no gate, got {self.trigger_dist_m}")
         _require(0.1 <= self.autopilot_decel_fraction <= 1,

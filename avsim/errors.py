@@ -28,3 +28,19 @@ class PhysicsError(AvsimError):
     """The simulation diverged (NaN or runaway state); the run is ended."""
 
     exit_code = 3
+
+
+class OutputError(AvsimError):
+    """An output path that cannot be written (a folder, a read-only place, an empty name), or a write that failed."""
+
+
+class RunsFailedError(AvsimError):
+    """Every run of a batch failed: the report says so, and the command exits non-zero."""
+
+    exit_code = 1
+
+
+class Interrupted(AvsimError):
+    """Ctrl-C (SIGINT) stopped a command; the message says what is kept and how to resume."""
+
+    exit_code = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C

@@ -9,14 +9,25 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 
+from avsim.outputs import write_bytes_atomic
 from avsim.perception.base import Detection
 
 STOPPED_SPEED_MPS = 0.1
+
+# How a run ended; `summarise` gives exactly one, and `avsim run` prints the same word.
+# "Stopped" means braked to below STOPPED_SPEED_MPS (the loop only stops a car that braked).
+#   stopped_before_line     stopped, front bumper at or before the stop line
+#   stopped_past_line       stopped past the line, bumper at or before the sign
+#   ran_past_sign           braked, but ended with the bumper past the sign (stopped there, or still rolling)
+#   never_braked            ran past the sign without ever braking
+#   timed_out_before_sign   loop.max_time_s ended the run before the sign, not stopped (braked or not)
+# The loop ends a run only when the car stopped, ran well past the sign, or timed out, so
+# these five cover every end.
+OUTCOMES = ("stopped_before_line", "stopped_past_line", "ran_past_sign", "never_braked", "timed_out_before_sign")
+STOPPED_BEFORE_SIGN = ("stopped_before_line", "stopped_past_line")
 
 
 @dataclass(frozen=True)
@@ -54,7 +65,7 @@ class RunResult:
     first_detection_dist_m: float | None
     peak_speed_mps: float
     config: dict[str, Any]
-    outcome: str  # stopped_before_line | stopped_before_sign | stopped_past_sign | did_not_stop
+    outcome: str  # one of OUTCOMES
     sign_margin_m: float  # bumper to sign at the end; > 0: stopped before the sign
     mean_decel_mps2: float | None  # speed at brake / time to stop
     speed_at_brake_mps: float | None
@@ -65,7 +76,8 @@ class RunResult:
 
     @property
     def stopped_before_sign(self) -> bool:
-        return self.outcome in ("stopped_before_line", "stopped_before_sign")
+        """Whether the car stopped with its bumper at or before the sign (either of STOPPED_BEFORE_SIGN)."""
+        return self.outcome in STOPPED_BEFORE_SIGN
 
     def to_json_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -82,14 +94,8 @@ def summarise(records: list[StepRecord], last: StepRecord, sign_xy_m: tuple[floa
     detected = next((r for r in records if r.top_stop_conf > 0), None)
     time_to_stop = last.time_s - brake_start.time_s if (stopped and brake_start) else None
     margin = last.stop_line_dist_m
-    if not stopped:
-        outcome = "did_not_stop"
-    elif margin >= 0:
-        outcome = "stopped_before_line"
-    elif last.sign_dist_m >= 0:
-        outcome = "stopped_before_sign"
-    else:
-        outcome = "stopped_past_sign"
+    outcome = classify_outcome(stopped=stopped, braked=brake_start is not None, line_dist_m=margin,
+                               sign_dist_m=last.sign_dist_m)
     return RunResult(
         stop_position_m=[last.x_m, last.y_m],
         sign_position_m=list(sign_xy_m),
@@ -109,26 +115,26 @@ def summarise(records: list[StepRecord], last: StepRecord, sign_xy_m: tuple[floa
     )
 
 
+def classify_outcome(*, stopped: bool, braked: bool, line_dist_m: float, sign_dist_m: float) -> str:
+    """The run's outcome (see OUTCOMES) from how it ended: bumper to line and to sign [m], > 0 before them."""
+    if stopped:
+        if line_dist_m >= 0:
+            return "stopped_before_line"
+        return "stopped_past_line" if sign_dist_m >= 0 else "ran_past_sign"
+    if sign_dist_m < 0:
+        return "ran_past_sign" if braked else "never_braked"
+    return "timed_out_before_sign"  # not stopped, before the sign: only the time limit ends such a run
+
+
 def write_json_atomic(path: str | os.PathLike, payload: dict[str, Any]) -> None:
     """Write JSON via a temporary file and rename, so a crash leaves no half-written file."""
     write_text_atomic(path, json.dumps(payload, indent=2, allow_nan=False) + "\n")
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
-    """Write `text` to a temporary file beside `path`, fsync it, and rename it over `path`."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; results are meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write `text` to a temporary file beside `path`, fsync it, and rename it over `path`
+    (`avsim.outputs.write_bytes_atomic`: a failed write is an OutputError naming the file)."""
+    write_bytes_atomic(path, text.encode())
 
 
 def finite_or_none(value: float | None) -> float | None:

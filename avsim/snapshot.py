@@ -2,19 +2,36 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import cv2
 
 from avsim.config import SimConfig
+from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
+from avsim.outputs import write_image
 from avsim.sensors.camera import CAMERA_NAMES
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.world.road import APPROACH_LENGTH_M, ROAD_END_X_M
+
+# Front bumper to stop line [m]: the whole car must stand on the road, which runs from
+# APPROACH_LENGTH_M before the line to ROAD_END_X_M past it (negative: past the line).
+SNAPSHOT_DIST_RANGE_M = (-(ROAD_END_X_M - 20.0), APPROACH_LENGTH_M - 20.0)
+
+
+def check_snapshot_distance(bumper_to_stop_line_m: float) -> None:
+    """A one-line ConfigError unless the distance is finite and puts the car on the road."""
+    low, high = SNAPSHOT_DIST_RANGE_M
+    if not (math.isfinite(bumper_to_stop_line_m) and low <= bumper_to_stop_line_m <= high):
+        raise ConfigError(f"--dist-m must be in [{low:g}, {high:g}] m (front bumper to stop line; negative: past it), "
+                          f"got {bumper_to_stop_line_m}")
 
 
 def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: str) -> list[Path]:
     """Place the car `bumper_to_stop_line_m` before the stop line, at rest, and save
     `{out_prefix}_{camera}.png` for each camera, with the oracle's boxes drawn."""
+    check_snapshot_distance(bumper_to_stop_line_m)
     loop = ClosedLoop(config)
     try:
         loop.vehicle.place(loop.scene.stop_line_x_m - bumper_to_stop_line_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
@@ -26,10 +43,7 @@ def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: s
                 cv2.rectangle(image, (x0, y0), (x1, y1), (0, 255, 0), 1)
                 cv2.putText(image, f"{det.class_name} {det.confidence:.2f}", (x0, max(y0 - 4, 10)),
                             cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 255, 0), 1, cv2.LINE_AA)
-            path = Path(f"{out_prefix}_{camera}.png")
-            path.parent.mkdir(parents=True, exist_ok=True)
-            cv2.imwrite(str(path), image)
-            paths.append(path)
+            paths.append(write_image(f"{out_prefix}_{camera}.png", image))
         return paths
     finally:
         loop.close()

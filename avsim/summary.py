@@ -4,12 +4,25 @@ from __future__ import annotations
 
 from avsim.metrics import RunResult
 
-_OUTCOME = {
-    "stopped_before_line": "STOPPED {line:.1f} m before the stop line ({sign:.1f} m before the sign)",
-    "stopped_before_sign": "STOPPED past the stop line, {sign:.1f} m before the sign",
-    "stopped_past_sign": "RAN PAST the sign: stopped {past:.1f} m beyond it",
-    "did_not_stop": "RAN PAST the sign without stopping",
+# What each outcome adds after its own word, the JSON's `outcome` (one entry per OUTCOMES).
+_OUTCOME_DETAIL = {
+    "stopped_before_line": "{line:.1f} m before the stop line ({sign:.1f} m before the sign)",
+    "stopped_past_line": "{past_line:.1f} m past the stop line, {sign:.1f} m before the sign",
+    "ran_past_sign": "{past:.1f} m beyond the sign, {state}; braking began {braked_at:.1f} m before it",
+    "never_braked": "{past:.1f} m beyond the sign, never braked",
+    "timed_out_before_sign": "the {limit:g} s time limit ended the run {sign:.1f} m before the sign; {braked}",
 }
+
+
+def outcome_line(result: RunResult) -> str:
+    """The outcome's own word, then where the car ended, e.g. "stopped_before_line: 2.9 m before the stop line (...)"."""
+    braked_at = result.dist_at_brake_m
+    detail = _OUTCOME_DETAIL[result.outcome].format(
+        line=result.margin_m, past_line=-result.margin_m, sign=result.sign_margin_m, past=-result.sign_margin_m,
+        limit=result.config["loop"]["max_time_s"], braked_at=braked_at if braked_at is not None else float("nan"),
+        state="stopped" if result.time_to_stop_s is not None else "still rolling",
+        braked=f"still rolling, braking since {braked_at:.1f} m before the sign" if braked_at is not None else "never braked")
+    return f"{result.outcome}: {detail}"
 
 
 def _dist(value: float | None, what: str) -> str:
@@ -19,14 +32,13 @@ def _dist(value: float | None, what: str) -> str:
 def format_summary(result: RunResult, wall_s: float) -> str:
     cfg = result.config
     sc = cfg["scenario"]
-    outcome = _OUTCOME[result.outcome].format(line=result.margin_m, sign=result.sign_margin_m, past=-result.sign_margin_m)
     tts = f"{result.time_to_stop_s:.2f} s (mean deceleration {result.mean_decel_mps2:.2f} m/s^2)" if result.time_to_stop_s else "n/a"
     brake = (f"{result.dist_at_brake_m:.1f} m before the sign, at {result.speed_at_brake_mps * 3.6:.1f} km/h"
              if result.dist_at_brake_m is not None else "never")
     lines = [
         f"avsim run: {sc['town']} / {sc['placement']} / policy {cfg['policy']['name']} / perception {cfg['perception']['kind']}"
         f" / sign {sc['sign']} / {sc['speed_kmh']:g} km/h / seed {sc['seed']}",
-        f"  outcome          {outcome}",
+        f"  outcome          {outcome_line(result)}",
         f"  time to stop     {tts}",
         f"  braking began    {brake}",
         f"  first detection  {_dist(result.first_detection_dist_m, 'no stop sign seen')}",

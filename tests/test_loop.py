@@ -100,6 +100,14 @@ def test_diverging_physics_ends_the_run_with_a_clear_error():
 def test_run_without_braking_ends_once_well_past_the_sign():
     # A detection range of 1000 px is never reached: the car runs the sign.
     result, _ = run_config(make_config(perception={"oracle_min_box_height_px": 1000.0}, scenario={"start_speed_kmh": 85.0, "start_dist_m": 80.0}))
-    assert result.outcome == "did_not_stop"
+    assert result.outcome == "never_braked"
     assert result.time_to_stop_s is None and result.first_detection_dist_m is None
     assert result.sign_margin_m < -30
+
+
+def test_a_slow_car_the_time_limit_stops_before_the_sign_has_timed_out_not_run_past():
+    # 10 km/h for 3 s covers about 8 m of the 60: the run ends on the clock, far before the sign.
+    result, _ = run_config(make_config(scenario={"speed_kmh": 10.0, "start_dist_m": 60.0}, loop={"max_time_s": 3.0}))
+    assert result.outcome == "timed_out_before_sign"
+    assert result.sign_margin_m > 40 and result.dist_at_brake_m is None
+    assert result.sim_time_s == pytest.approx(3.0)

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from avsim.metrics import StepRecord, summarise, write_json_atomic
+from avsim.metrics import OUTCOMES, STOPPED_BEFORE_SIGN, StepRecord, classify_outcome, summarise, write_json_atomic
 
 SIGN_XY = (1.0, -4.0)
 
@@ -35,9 +35,11 @@ def run_records(final_line: float):
     [
         (2.0, True, "stopped_before_line"),
         (0.0, True, "stopped_before_line"),
-        (-0.5, True, "stopped_before_sign"),  # between the line and the sign
-        (-3.0, True, "stopped_past_sign"),
-        (2.0, False, "did_not_stop"),
+        (-0.5, True, "stopped_past_line"),  # between the line and the sign
+        (-1.0, True, "stopped_past_line"),  # bumper at the sign
+        (-3.0, True, "ran_past_sign"),  # braked, stopped beyond the sign
+        (-3.0, False, "ran_past_sign"),  # braked, still rolling beyond the sign
+        (2.0, False, "timed_out_before_sign"),  # braked, still rolling when the time ran out
     ],
 )
 def test_outcome_strings(final_line, stopped, outcome):
@@ -46,7 +48,30 @@ def test_outcome_strings(final_line, stopped, outcome):
     assert result.outcome == outcome
     assert result.margin_m == final_line
     assert result.sign_margin_m == final_line + 1.0
-    assert result.stopped_before_sign == (outcome in ("stopped_before_line", "stopped_before_sign"))
+    assert result.stopped_before_sign == (outcome in ("stopped_before_line", "stopped_past_line"))
+
+
+@pytest.mark.parametrize("line_m", [60.0, 0.5, -0.9])
+def test_a_car_that_never_braked_and_timed_out_before_the_sign_says_so(line_m):
+    # A 10 km/h cruise that never reaches the sign before loop.max_time_s: not "ran past".
+    records = [rec(0.0, speed=2.8, line=line_m + 1), rec(0.05, speed=2.8, line=line_m + 0.5)]
+    result = summarise(records, rec(60.0, speed=2.8, line=line_m), SIGN_XY, False, {})
+    assert result.outcome == "timed_out_before_sign"
+    assert not result.stopped_before_sign
+
+
+def test_every_end_of_a_run_has_exactly_one_outcome():
+    """The five labels cover every way the loop ends a run: stopped (after braking) or not, braked or
+    not, and where the bumper is (before the line, between line and sign, past the sign)."""
+    seen = set()
+    for stopped in (True, False):
+        for braked in (True, False) if not stopped else (True,):  # the loop stops only a car that braked
+            for line_m in (5.0, -0.5, -3.0):
+                outcome = classify_outcome(stopped=stopped, braked=braked, line_dist_m=line_m, sign_dist_m=line_m + 1.0)
+                assert outcome in OUTCOMES
+                assert (outcome in STOPPED_BEFORE_SIGN) == (stopped and line_m + 1.0 >= 0)
+                seen.add(outcome)
+    assert seen == set(OUTCOMES)
 
 
 def test_time_to_stop_from_first_braking_record():
@@ -68,7 +93,7 @@ def test_no_detection_no_brake_gives_nones():
     records = [rec(0.0, line=10.0), rec(0.05, line=-10.0)]
     last = rec(0.10, line=-20.0)
     result = summarise(records, last, SIGN_XY, False, {})
-    assert result.outcome == "did_not_stop"
+    assert result.outcome == "never_braked"
     assert result.time_to_stop_s is None
     assert result.first_detection_dist_m is None
     assert result.dist_at_brake_m is None

@@ -22,6 +22,7 @@ import numpy as np
 
 from avsim.config import PerceptionConfig, SimConfig, with_overrides
 from avsim.loop import ClosedLoop
+from avsim.outputs import write_image
 from avsim.perception.ap import box_iou
 from avsim.perception.factory import build_perception
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
@@ -158,6 +159,4 @@ def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement:
     while len(tiles) % 3:
         tiles.append(np.zeros_like(tiles[0]))
     rows = [np.hstack(tiles[i:i + 3]) for i in range(0, len(tiles), 3)]
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(out_path), np.vstack(rows))
-    return out_path
+    return write_image(out_path, np.vstack(rows))

@@ -11,7 +11,9 @@ becomes a `failed` record carrying the error, and the batch goes on.
 Backends (`BACKENDS`); both run `execute(spec, root)` for each spec:
     local   this process (workers 1) or a pool of `workers` `spawn`ed processes on this
             machine; each builds its own MuJoCo model and EGL context (an OpenGL context
-            must never cross a fork). A worker process that dies stops the batch.
+            must never cross a fork). A worker process that dies stops the batch. The
+            workers exit when this process dies, and a batch stopped early (Ctrl-C)
+            stops them at once rather than waiting for their runs (`avsim.workers`).
     ray     Ray tasks on a cluster, or on a local one of `workers` CPUs
             (`avsim.experiments.ray_backend`, an optional extra: pip install 'avsim[ray]').
 Records, `on_record` and the progress bar are one code path for both.
@@ -45,6 +47,7 @@ from avsim.config import SimConfig
 from avsim.control.policies import STOP_CLASS
 from avsim.errors import ConfigError
 from avsim.metrics import StepRecord
+from avsim.workers import init_worker, terminate_workers
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
 _TRACE_DECIMALS = 4
@@ -195,11 +198,6 @@ def worker_env(workers: int) -> dict[str, str]:
     return {"LP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // max(1, workers)))}
 
 
-def apply_env(env: dict[str, str]) -> None:
-    """Set `env` in this process's environment: a pool's initializer, before any GL context exists."""
-    os.environ.update(env)
-
-
 def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
     """(index into specs, record) as each run finishes: in this process, or in a pool of spawned processes."""
     if workers <= 1:
@@ -207,10 +205,18 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> 
             yield index, execute(spec, root)
         return
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=apply_env, initargs=(worker_env(workers),)) as pool:
+    # The workers die with this process (a SIGKILL leaves no orphans) and ignore Ctrl-C, which
+    # this process handles for them: `avsim.workers`.
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=init_worker,
+                               initargs=(worker_env(workers), os.getpid()))
+    finished = False
+    try:
         futures = {pool.submit(execute, spec, root): index for index, spec in enumerate(specs)}
-        try:
-            for future in as_completed(futures):
-                yield futures[future], future.result()
-        finally:
-            pool.shutdown(cancel_futures=True)
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+        finished = True
+    finally:
+        if finished:
+            pool.shutdown()
+        else:  # stopped early (Ctrl-C, an error, the caller closed us): the runs in flight are not awaited
+            terminate_workers(pool)

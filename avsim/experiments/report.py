@@ -21,12 +21,11 @@ from typing import Any
 from avsim.config import VehicleConfig, with_overrides
 from avsim.experiments import study
 from avsim.experiments.spec import Experiment
-from avsim.metrics import write_text_atomic
+from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
 from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
 Record = dict[str, Any]
-STOPPED_BEFORE_SIGN = ("stopped_before_line", "stopped_before_sign")
 # Frames where the sign is within the perception's range (16 px) in every placement: the clean
 # sign is first detected about 40 m ahead (`avsim attack eval`).
 CONFIDENCE_WINDOW_M = (10.0, 40.0)
@@ -61,8 +60,12 @@ class Cells:
     def __init__(self, records: Sequence[Record]) -> None:
         self.results: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
         self.traces: dict[tuple[str, str], list[dict[str, list[float]]]] = defaultdict(list)
+        # Failed runs have no outcome; they are counted, never shown as stopped or run past.
+        self.failed: dict[tuple[str, str], int] = defaultdict(int)
         for record in sorted(records, key=lambda r: r["seed"]):
-            if record["status"] == "ok":
+            if record["status"] != "ok":
+                self.failed[record["experiment"], record["cell"]] += 1
+            else:
                 self.results[record["experiment"], record["cell"]].append(record["result"])
                 self.traces[record["experiment"], record["cell"]].append(record["trace"])
 
@@ -74,8 +77,10 @@ class Cells:
         return [get(r) for r in self.of(experiment, cell)]
 
     def stopped(self, experiment: str, cell: str) -> str:
+        """"k/n" of the finished runs, with the failed ones counted beside: "3/4 (1 failed)"."""
         results = self.of(experiment, cell)
-        return f"{sum(r['outcome'] in STOPPED_BEFORE_SIGN for r in results)}/{len(results)}"
+        failed = self.failed.get((experiment, cell), 0)
+        return f"{sum(r['outcome'] in STOPPED_BEFORE_SIGN for r in results)}/{len(results)}" + (f" ({failed} failed)" if failed else "")
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
@@ -164,7 +169,7 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
     """Where a defended run (or an undefended one at the clean sign) ran past the sign, with the
     deceleration stopping before the sign needed when braking began; then what each attacked sign
     did to the undefended `baseline` rule, beside the study's."""
-    failures, attacks = [], []
+    failures, attacks, unknown = [], [], []
     for experiment in experiments:
         stem = experiment.path.stem
         for cell in experiment.cells:
@@ -172,17 +177,39 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
             past = [r for r in results if r["outcome"] not in STOPPED_BEFORE_SIGN]
             config = cell.config
             where = f"{experiment.title} / {cell.name}"
+            failed = cells.failed.get((stem, cell.name), 0)
+            if failed:
+                unknown.append(f"{where} ({failed} of {failed + len(results)})")
+            if not results:
+                continue  # no run finished: nothing is known of this cell's outcome
             if config.policy.name == "baseline" and config.scenario.sign != "clean":
-                attacks.append(f"- {where}: ran past the sign in {len(past)} of {len(results)} runs"
+                attacks.append(f"- {where}: {_did_not_stop(past)} in {len(past)} of {len(results)} finished runs"
                                f"{_needed(past)} (the study's attacked car ran {-study.TABLE3['attacked sign, baseline'].before_sign_m:g} m past).")
             elif past:
                 kind = "defence" if config.policy.name in DEFENCES else "undefended run at the clean sign"
-                failures.append(f"- {where} ({kind}): ran past the sign in {len(past)} of {len(results)} runs{_needed(past)}.")
-    lines = ["Defended runs (and clean-sign runs) that ran past the sign:", ""]
-    lines += failures or ["- none: every defended run stopped before the sign."]
+                failures.append(f"- {where} ({kind}): {_did_not_stop(past)} in {len(past)} of {len(results)} finished runs{_needed(past)}.")
+    finished = sum(len(results) for results in cells.results.values())
+    lines = ["Defended runs (and clean-sign runs) that did not stop before the sign:", ""]
+    if not finished:
+        lines += ["- no run finished, so there is no outcome to report (see Failed runs)."]
+    else:
+        lines += failures or [f"- none: every finished defended run stopped before the sign"
+                              f"{' (the failed runs below have no outcome)' if unknown else ''}."]
+    if unknown:
+        lines += ["", f"Runs that failed, and have no outcome: {'; '.join(unknown)}."]
     if attacks:
         lines += ["", "What each attacked sign did to the undefended `baseline` rule:", "", *attacks]
     return lines
+
+
+def _did_not_stop(results: Sequence[dict[str, Any]]) -> str:
+    """"ran past the sign", or what else the runs that did not stop before the sign did."""
+    timed_out = sum(r["outcome"] == "timed_out_before_sign" for r in results)
+    if not timed_out:
+        return "ran past the sign"
+    if timed_out == len(results):
+        return "timed out before the sign"
+    return f"ran past the sign or timed out before it ({timed_out} timed out)"
 
 
 def _needed(past: Sequence[dict[str, Any]]) -> str:
@@ -214,7 +241,7 @@ def adaptive_answer(cells: Cells, experiment: Experiment) -> list[str]:
         if cell.config.policy.name in ("side_camera", "combined"):
             margins = cells.values(stem, cell.name, "sign_margin_m")
             lines.append(f"- {cell.name}: stopped before the sign in {cells.stopped(stem, cell.name)} runs, "
-                         f"bumper {fmt(margins)} m before it (smallest {min(margins):.1f} m)." if margins else f"- {cell.name}: no runs.")
+                         f"bumper {fmt(margins)} m before it (smallest {min(margins):.1f} m)." if margins else f"- {cell.name}: no run finished.")
     return ["Does defence 2 (the side camera) hold when the attack also targets the side camera?", "", *lines, ""]
 
 
@@ -275,6 +302,9 @@ def write_report(out_dir: Path, experiments: Sequence[Experiment], records: Sequ
         "Each cell is run over its seeds (start position and lighting vary) and reported as mean ± std. "
         "Every run has a rerun recording under `rrd/` and a line in `runs.jsonl`.", "",
     ]
+    if records and len(failed) == len(records):
+        lines += [f"**Every run failed** ({len(failed)} of {len(records)}): no table below states an outcome. "
+                  "The errors are under Failed runs.", ""]
     by_name = {e.name: e for e in experiments}
     for experiment in experiments:
         lines += [f"## {experiment.title}", "", f"`experiments/{experiment.path.name}`, {experiment.seeds} seed(s) per cell.", ""]

@@ -24,7 +24,7 @@ import shutil
 import time
 from pathlib import Path
 
-from avsim.errors import ConfigError
+from avsim.errors import ConfigError, Interrupted, RunsFailedError
 from avsim.experiments.batch import RunSpec, check_backend, run_batch
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.spec import Experiment, load_experiment
@@ -105,8 +105,20 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     specs = specs_for(experiments, out)
-    records = run_batch(specs, workers=workers, root=out, on_record=JsonlWriter(out / "runs.jsonl").append,
-                        progress=progress, description="reproduce", backend=backend, address=address)
+    writer = JsonlWriter(out / "runs.jsonl")
+    finished = 0
+
+    def on_record(record: dict) -> None:
+        nonlocal finished
+        writer.append(record)
+        finished += 1
+
+    try:
+        records = run_batch(specs, workers=workers, root=out, on_record=on_record,
+                            progress=progress, description="reproduce", backend=backend, address=address)
+    except KeyboardInterrupt:
+        raise Interrupted(f"{finished} finished run(s) are in {writer.path}, with no report; `avsim reproduce` "
+                          "does not resume, so run it again for the report") from None
     # Finishing order depends on the workers; the file ends in spec order, the same every time.
     rewrite(out / "runs.jsonl", records)
     wall_s = time.perf_counter() - started
@@ -127,6 +139,9 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     }
     write_json_atomic(out / "manifest.json", manifest)
     write_report(out, experiments, records, manifest)
+    if records and manifest["failed"] == len(records):
+        first = next(r["error"] for r in records if r["status"] == "failed")
+        raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); see {out / 'report.md'}")
     return out
 
 

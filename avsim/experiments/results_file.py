@@ -2,7 +2,16 @@
 
 Each record is written as one `write` of a complete line, then flushed and fsynced, so a
 crash can leave at most a torn *last* line; `read_records` skips such a line (it is a run
-that never finished) and reads every complete one.
+that never finished) and reads every complete one. Anything else that is not a run record
+is refused in one line, never skipped: a corrupt line in the middle (named by its number),
+or a file that is not avsim's at all (its first line is not a run record). A run record is
+a JSON object with the keys of `RECORD_KEYS` and a status of "ok" or "failed". Files are
+appended to, or replaced whole (`rewrite`: a temporary file renamed over them), never
+rewritten in place.
+
+Records written before the outcome labels were renamed (`stopped_before_sign`,
+`stopped_past_sign`, `did_not_stop`) are read with today's label, recomputed from the
+record's own distances (`avsim.metrics.classify_outcome`).
 """
 
 from __future__ import annotations
@@ -13,7 +22,12 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from avsim.metrics import write_text_atomic
+from avsim.errors import ConfigError
+from avsim.metrics import OUTCOMES, classify_outcome, write_text_atomic
+
+RECORD_KEYS = ("experiment", "cell", "seed", "spec_hash", "status")
+STATUSES = ("ok", "failed")
+LEGACY_OUTCOMES = ("stopped_before_sign", "stopped_past_sign", "did_not_stop")
 
 
 def encode(record: dict[str, Any]) -> str:
@@ -40,16 +54,69 @@ class JsonlWriter:
 
 
 def read_records(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """Every complete record in `path`, in file order; a torn last line is skipped."""
+    """Every complete record in `path`, in file order; a torn last line is skipped.
+
+    Raises a one-line ConfigError for a file that is not avsim's, or a corrupt line in it.
+    """
     path = Path(path)
     if not path.exists():
         return []
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise _foreign(path, "it is not text") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read {path} ({exc.strerror}); choose another --out") from None
     records = []
-    for line in path.read_text().splitlines(keepends=True):
+    for number, line in enumerate(text.splitlines(keepends=True), 1):
         if not line.endswith("\n"):
             break  # torn by a crash mid-write: that run did not finish
-        records.append(json.loads(line))
+        problem = None
+        try:
+            record = json.loads(line)
+        except ValueError as exc:
+            problem = f"not JSON ({exc.msg})"
+        else:
+            problem = _record_problem(record)
+        if problem is not None:
+            if number == 1:
+                raise _foreign(path, f"its first line is {problem}")
+            raise ConfigError(f"{path} line {number} is corrupt ({problem}); delete that line to resume "
+                              f"(its run is run again), or choose another --out")
+        records.append(_with_current_outcome(record))
     return records
+
+
+def _record_problem(record: Any) -> str | None:
+    """Why `record` is not a run record; None when it is one."""
+    if not isinstance(record, dict):
+        return f"a JSON {type(record).__name__}, not a run record"
+    missing = [key for key in RECORD_KEYS if key not in record]
+    if missing:
+        return f"a JSON object without the run record key '{missing[0]}'"
+    if record["status"] not in STATUSES:
+        return f"a record with status {record['status']!r}, not one of {', '.join(STATUSES)}"
+    result = record.get("result")
+    if record["status"] == "ok" and not (isinstance(result, dict) and result.get("outcome") in (*OUTCOMES, *LEGACY_OUTCOMES)):
+        return "an ok record without a known outcome"
+    if record["status"] == "ok" and result["outcome"] in LEGACY_OUTCOMES and not all(
+            key in result for key in ("margin_m", "sign_margin_m", "dist_at_brake_m")):
+        return "an ok record whose result lacks its distances"
+    return None
+
+
+def _foreign(path: Path, why: str) -> ConfigError:
+    return ConfigError(f"{path} is not an avsim results file ({why}); choose another --out, or move the file away")
+
+
+def _with_current_outcome(record: dict[str, Any]) -> dict[str, Any]:
+    """`record`, its result's outcome relabelled when it is one of LEGACY_OUTCOMES."""
+    result = record.get("result")
+    if not isinstance(result, dict) or result.get("outcome") not in LEGACY_OUTCOMES:
+        return record
+    outcome = classify_outcome(stopped=result["outcome"] != "did_not_stop", braked=result["dist_at_brake_m"] is not None,
+                               line_dist_m=result["margin_m"], sign_dist_m=result["sign_margin_m"])
+    return {**record, "result": {**result, "outcome": outcome}}
 
 
 def rewrite(path: str | os.PathLike, records: Iterable[dict[str, Any]]) -> None:

@@ -135,6 +135,9 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
     except tomllib.TOMLDecodeError as exc:
         # tomllib's message names the line and column: "... (at line 3, column 7)".
         raise ConfigError(f"{path}: malformed TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a text TOML file (byte {exc.start} is not UTF-8); give the {kind} file "
+                          f"as TOML text, like those in experiments/") from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read {kind} file ({exc.strerror})") from None
 

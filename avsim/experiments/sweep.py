@@ -15,8 +15,10 @@ key may also be written as a TOML dotted key (`scenario.speed_kmh = [...]`).
 
 Everything is checked when the file is loaded, before any run starts: unknown top-level
 and config keys, empty lists, repeated values, wrong types and out-of-range values (by the
-config dataclasses), registry names (town, placement, policy, perception) and sign
-textures, and then every combination's full config (for limits that tie two keys together).
+config dataclasses), registry names (town, placement, policy, perception), sign textures
+(each decoded as the scene decodes it; two names of one file, such as "clean" and
+"stop_sign", are refused), and then every combination's full config (for limits that tie
+two keys together).
 Each error is one `ConfigError` line naming the file, the place in it and the key.
 
 `run_sweep` runs the specs through `avsim.experiments.batch.run_batch`, on its local pool of
@@ -30,7 +32,9 @@ It writes into one folder:
     safety_map.png    the figure
 
 With `resume`, runs whose config hash already has an `ok` record in results.jsonl are not
-run again; failed runs are. The hash is the run's whole config, so growing the grid (a new
+run again; failed runs are. A results.jsonl that is not avsim's, or has a corrupt line, is
+refused before anything runs (`avsim.experiments.results_file.read_records`). Ctrl-C ends
+the sweep with `Interrupted`, naming the finished runs and the command that resumes it. The hash is the run's whole config, so growing the grid (a new
 speed) reuses every finished run. A sweep killed at any moment (even mid-write: a torn last
 line is dropped before new records are appended) resumes to the same results.jsonl as a run
 never stopped, `wall_s` aside.
@@ -50,7 +54,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
-from avsim.errors import ConfigError
+from avsim.errors import AvsimError, ConfigError, Interrupted, RunsFailedError
 from avsim.experiments.batch import RunSpec, check_backend, run_batch
 from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
 from avsim.experiments.spec import (_check_registry_names, _deep_merge, _located, _nested, _reject_seed, _table,
@@ -60,6 +64,7 @@ from avsim.metrics import write_json_atomic
 TOP_LEVEL_KEYS = ("title", "seeds", "defaults", "grid")
 DEFAULT_SEEDS = 1
 RESULTS_FILE = "results.jsonl"
+SIGN_KEY = "scenario.sign"
 
 Scalar = str | int | float | bool
 
@@ -161,14 +166,21 @@ def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...
         if not values:
             raise ConfigError(f"'{key}' is an empty list; give it at least one value")
         checked: list[Scalar] = []
+        loads: dict[Path, Scalar] = {}  # sign texture file -> the value that names it
         for value in values:
             if isinstance(value, (Mapping, list)):
                 raise ConfigError(f"'{key}' values must be numbers, strings or booleans, got {value!r}")
             config = with_overrides(base, _nested(key, value))  # unknown key, wrong type, out of range
-            _check_names(config)
+            texture = _check_names(config)
             held = _lookup(config, key)
             if held in checked:
                 raise ConfigError(f"'{key}' lists the value {value!r} twice")
+            # Two names of one texture ("clean" and "stop_sign") would run the same run twice
+            # under two labels; refused rather than merged, so the grid stays as written.
+            if key == SIGN_KEY and texture in loads:
+                raise ConfigError(f"'{key}' lists {loads[texture]!r} and {value!r}, which load the same texture "
+                                  f"{texture}; list it once")
+            loads[texture] = value
             checked.append(held)
         grid.append((key, tuple(checked)))
     return tuple(grid)
@@ -190,18 +202,20 @@ def _lookup(config: SimConfig, dotted: str) -> Scalar:
     return node
 
 
-def _check_names(config: SimConfig) -> None:
-    """Registry names (town, placement, policy, perception) and the sign texture."""
+def _check_names(config: SimConfig) -> Path:
+    """Registry names (town, placement, policy, perception) and the sign texture, decoded as the
+    scene will decode it (a PNG of a stop sign's square shape); returns the texture's resolved path."""
     from avsim.world.scene import resolve_sign_texture
+    from avsim.world.textures import load_texture_png
 
     _check_registry_names(config)
     sign = config.scenario.sign
     try:
         texture = resolve_sign_texture(sign)
-    except ConfigError as exc:
+        load_texture_png(texture, expected_aspect=1.0)
+    except AvsimError as exc:  # an unknown name, or a file that is no usable PNG (TextureError)
         raise ConfigError(f"scenario.sign: {exc}") from None
-    if not texture.is_file():
-        raise ConfigError(f"scenario.sign: no texture file '{sign}'")
+    return texture.resolve()
 
 
 # ---- running ---------------------------------------------------------------------------------
@@ -251,8 +265,11 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
         ran[record["spec_hash"]] = record
         writer.append(record)
 
-    run_batch(todo, workers=workers, root=out, on_record=on_record, progress=progress, description=sweep.name,
-              backend=backend, address=address)
+    try:
+        run_batch(todo, workers=workers, root=out, on_record=on_record, progress=progress, description=sweep.name,
+                  backend=backend, address=address)
+    except KeyboardInterrupt:
+        raise Interrupted(_resume_hint(sweep, out, results_path, len(finished) + len(ran))) from None
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     records = [ran.get(spec.spec_hash) or finished[spec.spec_hash] for spec in specs]
     others = [r for r in existing if r.get("spec_hash") not in point_of]
@@ -280,7 +297,19 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     }
     write_json_atomic(out / "manifest.json", manifest)
     write_sweep_report(out, sweep, records, manifest)
+    if records and manifest["failed"] == len(records):
+        first = next(r["error"] for r in records if r["status"] == "failed")
+        raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); "
+                              f"see {out / 'summary.md'}")
     return out
+
+
+def _resume_hint(sweep: Sweep, out: Path, results_path: Path, finished: int) -> str:
+    """What an interrupted sweep kept, and the command that finishes it."""
+    command = f"avsim sweep {sweep.path} --out {out} --resume"
+    if not finished:
+        return f"no run had finished; run it again with: {command}"
+    return f"{finished} finished run{'s are' if finished != 1 else ' is'} in {results_path}; resume with: {command}"
 
 
 def _torn_tail(path: Path) -> bool:

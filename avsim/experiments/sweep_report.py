@@ -4,7 +4,7 @@
     smap.max_safe_kmh("baseline", "yang")       # 40.0, or None when no speed is safe
 
 A speed is *safe* for (policy, sign) when every run there is `ok` and stopped before the
-sign (outcome `stopped_before_line` or `stopped_before_sign`): every seed, and every value
+sign (outcome `stopped_before_line` or `stopped_past_line`): every seed, and every value
 of any other grid key. A failed run makes its speed not safe (it is not known to stop).
 Everything is computed from the records alone; a run's policy, sign and speed come from
 its grid point, or from the sweep's base config when the grid does not vary them.
@@ -29,10 +29,9 @@ from typing import Any
 
 from avsim.config import SimConfig
 from avsim.errors import ConfigError
-from avsim.metrics import write_text_atomic
+from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
 
 SPEED_KEY, SIGN_KEY, POLICY_KEY = "scenario.speed_kmh", "scenario.sign", "policy.name"
-STOPPED_BEFORE_SIGN = ("stopped_before_line", "stopped_before_sign")
 FIGURE_FILE = "safety_map.png"
 
 
@@ -208,7 +207,7 @@ def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], fron
         f"Grid speeds [km/h]: {', '.join(f'{s:g}' for s in smap.speeds_kmh)}.", "",
         "## Highest speed at which the car stops before the sign [km/h]", "",
         "A speed counts when every run at it stopped before the sign (outcome stopped_before_line or "
-        f"stopped_before_sign). \"none\": not even at {lowest:g} km/h. A `*` marks a gap: some lower speed did not stop "
+        f"stopped_past_line). \"none\": not even at {lowest:g} km/h. A `*` marks a gap: some lower speed did not stop "
         "(the value in brackets is the highest speed with every speed up to it safe)." if lowest is not None else "", "",
         "| policy | " + " | ".join(s.label for s in strengths) + " |",
         "|---|" + "---:|" * len(strengths),
@@ -232,7 +231,8 @@ def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], fron
         lines.append(f"| {s.label} | `{s.sign}` | {budget} | {peak} | {sure} |")
     lines += ["", "## Every run", "",
               "Bumper to sign at the end [m] (> 0: before the sign; `line`: before the stop line too); "
-              "`past`: stopped past the sign; `no stop`: did not stop; with several runs, how many stopped before the sign.", "",
+              "`past`: braked but ran past the sign; `never braked`: ran past without braking; `timed out`: the time "
+              "limit ended the run before the sign; with several runs, how many stopped before the sign.", "",
               "| policy | sign | " + " | ".join(f"{s:g}" for s in smap.speeds_kmh) + " |",
               "|---|---|" + "---:|" * len(smap.speeds_kmh)]
     for policy in smap.policies:
@@ -294,8 +294,8 @@ def _run_cell(cell: SpeedOutcome | None) -> str:
         if cell.failed:
             return "failed"
         outcome, margin = cell.outcomes[0], cell.sign_margins_m[0]
-        return {"stopped_before_line": f"{margin:.1f} line", "stopped_before_sign": f"{margin:.1f}",
-                "stopped_past_sign": "past", "did_not_stop": "no stop"}[outcome]
+        return {"stopped_before_line": f"{margin:.1f} line", "stopped_past_line": f"{margin:.1f}",
+                "ran_past_sign": "past", "never_braked": "never braked", "timed_out_before_sign": "timed out"}[outcome]
     return f"{cell.stopped}/{cell.runs}" + (f" ({cell.failed} failed)" if cell.failed else "")
 
 

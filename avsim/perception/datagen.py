@@ -29,10 +29,12 @@ import cv2
 import mujoco
 import numpy as np
 
-from avsim.config import SimConfig, with_overrides
+from avsim.config import SimConfig, check_seed, with_overrides
 from avsim.errors import ConfigError
+from avsim.outputs import write_image
 from avsim.sensors.camera import CameraRig
 from avsim.vehicle.physics import Vehicle
+from avsim.workers import init_worker, terminate_workers
 from avsim.world import props
 from avsim.world.scene import SceneInfo, compose_scene
 from avsim.world.towns import PLACEMENTS, TOWNS
@@ -64,6 +66,7 @@ class DataGenConfig:
             raise ConfigError(f"workers must be in [1, 64], got {self.workers}")
         if not 10.0 <= self.max_dist_m <= 300.0:
             raise ConfigError(f"--max-dist-m must be in [10, 300] m (the approach road is 320 m long), got {self.max_dist_m}")
+        check_seed(self.seed, "seed")
 
 
 @dataclass(frozen=True)
@@ -189,7 +192,8 @@ def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0) -> list[
             labels = [(kinds[name], box) for name, box in boxes.items() if box[3] - box[1] >= MIN_LABEL_HEIGHT_PX]
             model.cam_pos[cam_id], model.cam_quat[cam_id] = base_pos, base_quat
             rel = f"images/{job.split}/{job.first_index + k:06d}.png"
-            cv2.imwrite(os.path.join(out_dir, rel), image[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
+            # Not atomic: the whole dataset is written to a .partial folder, renamed when complete.
+            write_image(os.path.join(out_dir, rel), image[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1], atomic=False)
             records.append({
                 "image": rel,
                 "boxes": [[round(float(v), 3) for v in box] for _, box in labels],
@@ -241,15 +245,21 @@ def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: b
             import multiprocessing
 
             # Each worker builds its own renderers: GL contexts are never shared across processes.
-            pool = ProcessPoolExecutor(config.workers, mp_context=multiprocessing.get_context("spawn"))
+            # The workers die with this process and leave Ctrl-C to it (`avsim.workers`).
+            pool = ProcessPoolExecutor(config.workers, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=init_worker, initargs=({}, os.getpid()))
             outputs = pool.map(_render_job, work)
+        finished = False
         try:
             for job, records in outputs:
                 results[jobs.index(job)] = records
                 bar.update(job.n_images)
+            finished = True
         finally:
-            if pool is not None:
+            if pool is not None and finished:
                 pool.shutdown()
+            elif pool is not None:
+                terminate_workers(pool)
     for split in ("train", "val"):
         with open(partial / f"{split}.jsonl", "w") as handle:
             for i, job in enumerate(jobs):

@@ -24,6 +24,7 @@ from avsim.config import CameraConfig
 from avsim.control.pinhole import pinhole_distance_m
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
+from avsim.perception.detector.data import split_path
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60), (60, 80), (80, 100), (100, 120), (120, 140),
                (140, 160))
@@ -94,7 +95,7 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
     from tqdm import tqdm
 
     data_dir = Path(data_dir)
-    records = [json.loads(line) for line in (data_dir / f"{split}.jsonl").read_text().splitlines()]
+    records = [json.loads(line) for line in split_path(data_dir, split).read_text().splitlines()]
     records = records[:limit] if limit else records
     tallies = {cls: _ClassTally() for cls in SIGN_CLASSES}
     f_px = CameraConfig().f_px

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import math
 import os
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -47,6 +46,7 @@ from avsim.control.policies import STOP_CLASS
 from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
 from avsim.metrics import StepRecord
+from avsim.outputs import temporary_path
 from avsim.perception.base import Detection
 from avsim.recording import paths
 from avsim.recording.blueprint import default_blueprint
@@ -112,9 +112,10 @@ class RunRecorder:
 
         self._rec = rr.RecordingStream(APPLICATION_ID)
         self._path.parent.mkdir(parents=True, exist_ok=True)
-        # A unique hidden name beside `path` (same file system, so the rename is atomic);
-        # rerun creates the file, with the user's usual permissions.
-        self._tmp_path = self._path.with_name(f".{self._path.name}.{uuid.uuid4().hex}.tmp")
+        # A unique hidden name beside `path` (same file system, so the rename is atomic), which
+        # a later write of `path` removes if this process is killed; rerun creates the file,
+        # with the user's usual permissions.
+        self._tmp_path = temporary_path(self._path)
         try:
             if not self._rec.is_enabled():
                 raise ConfigError("rerun logging is disabled (RERUN=off in the environment); unset RERUN to write --rrd")

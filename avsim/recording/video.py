@@ -28,7 +28,6 @@ file beside `path` and renamed on `close()`, so an interrupted run leaves no fil
 from __future__ import annotations
 
 import os
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -40,6 +39,7 @@ import numpy as np
 from avsim.control.policies import STOP_CLASS
 from avsim.errors import AvsimError, ConfigError
 from avsim.metrics import StepRecord
+from avsim.outputs import temporary_path
 from avsim.perception.base import Detection
 
 if TYPE_CHECKING:
@@ -124,9 +124,10 @@ class VideoRecorder:
         fps = 1.0 / loop.config.loop.control_dt_s
 
         self._path.parent.mkdir(parents=True, exist_ok=True)
-        # A unique hidden name beside `path` (same file system, so the rename is atomic);
-        # it ends in .mp4 because OpenCV picks the container from the extension.
-        self._tmp_path = self._path.with_name(f".{self._path.name}.{uuid.uuid4().hex}.tmp.mp4")
+        # A unique hidden name beside `path` (same file system, so the rename is atomic), which a
+        # later write of `path` removes if this process is killed; it ends in .mp4 because
+        # OpenCV picks the container from the extension.
+        self._tmp_path = temporary_path(self._path, ".mp4")
         self._writer = cv2.VideoWriter(str(self._tmp_path), cv2.VideoWriter_fourcc(*FOURCC), fps, self._size_px)
         try:
             if not self._writer.isOpened():

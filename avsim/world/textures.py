@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import struct
-import tempfile
 from pathlib import Path
 from typing import Callable
 
@@ -19,6 +18,7 @@ import cv2
 import numpy as np
 
 from avsim.errors import TextureError
+from avsim.outputs import write_bytes_atomic
 
 TEXTURE_DIR = Path(__file__).resolve().parents[2] / "textures"
 
@@ -251,18 +251,7 @@ def save_texture_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
     ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     if not ok:
         raise TextureError(f"cannot encode texture {p} as PNG; {fix}")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o644)  # mkstemp's 0600 would make the committed textures private
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.tobytes())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_bytes_atomic(p, buf.tobytes())
 
 
 def write_clean_textures(out_dir: Path = TEXTURE_DIR) -> list[Path]:

@@ -98,12 +98,12 @@ def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tm
     path.write_text(TINY_TABLE3)
     experiment = load_experiment(path)
     config = experiment.cells[1].config.to_dict()
-    ran_past = {"outcome": "stopped_past_sign", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 20.0, "config": config}
+    ran_past = {"outcome": "ran_past_sign", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 20.0, "config": config}
     stopped = {"outcome": "stopped_before_line", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 40.0, "config": config}
     records = [{"experiment": "table3_stop_positions", "cell": "attacked sign, side_camera", "seed": k, "status": "ok",
                 "result": result, "trace": {}} for k, result in enumerate((ran_past, stopped))]
     lines = findings(Cells(records), [experiment])
-    assert any("attacked sign, side_camera (defence): ran past the sign in 1 of 2 runs" in line and "10.0 m/s²" in line
+    assert any("attacked sign, side_camera (defence): ran past the sign in 1 of 2 finished runs" in line and "10.0 m/s²" in line
                for line in lines)  # v²/2d = 400/40
     # Beside it, the car's full brake at that run's road friction and speed, measured, not a constant.
     from avsim.vehicle.brake_test import full_brake_decel_mps2
@@ -148,3 +148,37 @@ def test_reproduce_on_a_dead_ray_address_is_refused_before_a_results_folder_is_m
                      "--out", str(tmp_path / "results")])
     assert code == 2 and "no Ray cluster answers" in capsys.readouterr().err
     assert not (tmp_path / "results").exists()
+
+
+def test_a_reproduce_where_every_run_failed_says_so_and_exits_non_zero(tmp_path, capsys):
+    # The texture is checked when the scene is built (an attack run may write it later), so every run fails.
+    (tmp_path / "fake.png").write_text("not a png")
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3.replace('town = "town07",', f'town = "town07", sign = "{tmp_path / "fake.png"}",'))
+    code = cli.main(["reproduce", "--experiments", str(experiment), "--workers", "1", "--no-progress",
+                     "--out", str(tmp_path / "results")])
+    err = capsys.readouterr().err
+    assert code == 1 and len(err.splitlines()) == 1 and "every one of the 6 runs failed" in err, err
+    report = next((tmp_path / "results").glob("*/report.md")).read_text()
+    assert "**Every run failed** (6 of 6)" in report
+    assert "no run finished, so there is no outcome to report" in report
+    assert "every finished defended run stopped" not in report and "every defended run stopped" not in report
+    assert "| clean sign, baseline | 0/0 (2 failed) |" in report
+
+
+def test_failed_runs_are_counted_beside_the_outcomes_of_the_others(tmp_path):
+    from avsim.experiments.report import Cells, findings
+    from avsim.experiments.spec import load_experiment
+
+    path = tmp_path / "table3_stop_positions.toml"
+    path.write_text(TINY_TABLE3)
+    experiment = load_experiment(path)
+    stopped = {"outcome": "stopped_before_line", "speed_at_brake_mps": 20.0, "dist_at_brake_m": 40.0}
+    cell = "attacked sign, side_camera"
+    records = [{"experiment": "table3_stop_positions", "cell": cell, "seed": 0, "status": "ok", "result": stopped, "trace": {}},
+               {"experiment": "table3_stop_positions", "cell": cell, "seed": 1, "status": "failed", "result": None,
+                "trace": None, "error": "RenderError: x"}]
+    cells = Cells(records)
+    assert cells.stopped("table3_stop_positions", cell) == "1/1 (1 failed)"
+    text = "\n".join(findings(cells, [experiment]))
+    assert "the failed runs below have no outcome" in text and f"{cell} (1 of 2)" in text

@@ -179,7 +179,7 @@ def captured_config(monkeypatch):
     """Replace the simulation by a stub that captures the config `avsim run` resolved."""
     captured: list[SimConfig] = []
 
-    class _Stop(Exception):
+    class _Stop(BaseException):  # not an Exception: cli.main's error boundary lets it through
         pass
 
     def _run_recorded(config, **recorders):

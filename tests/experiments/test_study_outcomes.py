@@ -31,7 +31,7 @@ def run_cell(file: str, cell: str, seed: int = SEED) -> RunResult:
 
 
 def _stopped_before_sign(result: RunResult) -> bool:
-    return result.outcome in ("stopped_before_line", "stopped_before_sign") and result.sign_margin_m > 0
+    return result.stopped_before_sign and result.sign_margin_m > 0
 
 
 def test_clean_sign_baseline_stops_before_the_sign():

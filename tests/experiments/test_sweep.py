@@ -98,7 +98,7 @@ def test_a_toml_dotted_grid_key_is_the_same_as_a_quoted_one(tmp_path):
     ('[grid]\n"policy.name" = ["baseline", "brake_harder"]\n', "policy.name: unknown policy 'brake_harder'"),
     ('[grid]\n"scenario.town" = ["town99"]\n', "scenario.town: unknown town 'town99'"),
     ('[grid]\n"scenario.sign" = ["clean", "yang_eps9"]\n', "scenario.sign: unknown sign texture 'yang_eps9'"),
-    ('[grid]\n"scenario.sign" = ["no/such.png"]\n', "scenario.sign: no texture file 'no/such.png'"),
+    ('[grid]\n"scenario.sign" = ["no/such.png"]\n', "scenario.sign: texture no/such.png does not exist"),
     ('[grid]\n"scenario.seed" = [0, 1]\n', "'scenario.seed' cannot be a grid key"),
     ('[grid]\n"scenario" = [{ speed_kmh = 30 }]\n', "'scenario' values must be numbers, strings or booleans"),
     ('seeds = 0\n[grid]\n"scenario.speed_kmh" = [30]\n', "'seeds' must be an integer >= 1"),
@@ -211,7 +211,7 @@ def _record(policy: str, sign: str, speed: float, outcome: str | None, seed: int
 
 
 def test_safety_map_is_the_highest_speed_at_which_every_run_stopped_before_the_sign():
-    line, sign, past, none = "stopped_before_line", "stopped_before_sign", "stopped_past_sign", "did_not_stop"
+    line, sign, past, none = "stopped_before_line", "stopped_past_line", "ran_past_sign", "never_braked"
     records = [
         # baseline, clean: safe at 30 and 60 (one seed stopped between line and sign), not at 90.
         _record("baseline", "clean", 30, line), _record("baseline", "clean", 30, line, seed=1),

@@ -66,14 +66,25 @@ def _parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, .
     return Record(data_dir / image, box_array, class_array)
 
 
+def split_path(data_dir: str | Path, split: str) -> Path:
+    """`data_dir/<split>.jsonl`; a one-line DatasetError saying how to make the dataset when it is missing."""
+    data_dir = Path(data_dir)
+    path = data_dir / f"{split}.jsonl"
+    if path.is_file():
+        return path
+    if not data_dir.is_dir():
+        raise DatasetError(f"no detector dataset at {data_dir} (a fresh clone has none); make one with "
+                           f"`avsim detector make-data --out {data_dir}` (about 4.5 min), or point --data at one")
+    raise DatasetError(f"detector dataset file {path} is missing; point --data at a directory with train.jsonl and "
+                       f"val.jsonl, or remake it with `avsim detector make-data --out {data_dir} --overwrite`")
+
+
 def read_records(data_dir: str | Path, split: str, class_names: tuple[str, ...] = SIGN_CLASSES) -> list[Record]:
     """All records of `split` ("train" or "val") in `data_dir`, validated."""
     if split not in SPLITS:
         raise DatasetError(f"unknown split '{split}'; expected one of {', '.join(SPLITS)}")
     data_dir = Path(data_dir)
-    path = data_dir / f"{split}.jsonl"
-    if not path.is_file():
-        raise DatasetError(f"detector dataset file {path} is missing; point --data at a directory with train.jsonl and val.jsonl")
+    path = split_path(data_dir, split)
     lines = path.read_text().splitlines()
     return [_parse_line(line, f"{path}:{n}", data_dir, class_names) for n, line in enumerate(lines, 1) if line.strip()]
 

@@ -31,7 +31,8 @@ from torch import nn
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
-from avsim.errors import AvsimError, ConfigError
+from avsim.errors import AvsimError, ConfigError, Interrupted
+from avsim.outputs import check_declared_outputs
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.data import SignDataset, collate
 from avsim.perception.detector.ema import ModelEMA
@@ -195,9 +196,14 @@ def run_from_args(args: argparse.Namespace) -> int:
     width, sep, height = str(args.input_size).lower().partition("x")
     if not sep or not width.isdigit() or not height.isdigit():
         raise ConfigError(f"--input-size expects WxH, e.g. 640x480, got '{args.input_size}'")
-    result = train(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                   resume=args.resume, input_size=(int(width), int(height)), log_every=args.log_every,
-                   device=args.device, width_mult=args.width_mult, progress=not args.no_progress)
+    try:
+        result = train(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
+                       resume=args.resume, input_size=(int(width), int(height)), log_every=args.log_every,
+                       device=args.device, width_mult=args.width_mult, progress=not args.no_progress)
+    except KeyboardInterrupt:
+        kept = (f"the last finished epoch is in {args.out}; resume with the same command and --resume"
+                if Path(args.out).is_file() else "no epoch had finished, so there is nothing to resume")
+        raise Interrupted(kept) from None
     print(f"wrote {result['out_path']}")
     return 0
 
@@ -207,6 +213,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_train_arguments(parser)
     args = parser.parse_args(argv)
     try:
+        check_declared_outputs(args)  # --out, before any work, as `avsim detector train` checks it
         return run_from_args(args)
     except AvsimError as exc:
         print(f"avsim: error: {exc}", file=sys.stderr)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 
+from avsim.outputs import FILE, add_output_argument
+
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     """The training flags, shared by `avsim detector train` and `python -m avsim.perception.detector.train`."""
     parser.add_argument("--data", required=True, help="dataset directory with train.jsonl (and val.jsonl)")
-    parser.add_argument("--out", required=True, help="checkpoint / weights file, rewritten each epoch")
+    add_output_argument(parser, "--out", kind=FILE, required=True, help="checkpoint / weights file, rewritten each epoch")
     parser.add_argument("--epochs", type=int, default=6, help="total epochs (6 made the shipped weights)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resume", action="store_true", help="continue from --out if it holds a checkpoint")

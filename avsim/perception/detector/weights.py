@@ -21,6 +21,7 @@ import torch
 from torch import nn
 
 from avsim.errors import AvsimError
+from avsim.outputs import temporary_path
 from avsim.perception.detector.model import SignDetector, build_detector
 
 FORMAT = "avsim-sign-detector"
@@ -77,7 +78,7 @@ def save_checkpoint(path: str | Path, model: nn.Module, optimizer: torch.optim.O
         "train_state": train_state or {},
     }
     _check_plain(payload, "checkpoint")
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp = temporary_path(path)  # removed by the next save if this process is killed mid-write
     try:
         torch.save(payload, tmp)
         os.replace(tmp, path)

@@ -112,4 +112,4 @@ def test_cli_trains_and_reports_bad_input_in_one_line(synthetic_dataset, tmp_pat
     assert main(["--data", str(tmp_path / "nowhere"), "--out", str(out), "--epochs", "1", "--seed", "0"]) == 2
     assert main(args[:-3] + ["--input-size", "300x200"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 2 and "train.jsonl is missing" in err[0] and "multiples of 32" in err[1]
+    assert len(err) == 2 and "avsim detector make-data --out" in err[0] and "multiples of 32" in err[1]
