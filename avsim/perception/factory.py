@@ -31,6 +31,36 @@ def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo,
 PERCEPTIONS.add("detector", _detector)
 
 
+def _regions(config: PerceptionConfig) -> dict[str, tuple[int, int, int, int]]:
+    return {"front": config.front_roi_px, "side": config.side_roi_px}
+
+
+def _coco(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
+    # Imported here so runs without it never import the port (nor need its fetched weights).
+    from avsim.perception.coco.model import load_centernet
+    from avsim.perception.coco.runner import CocoRunner
+    from avsim.perception.frame import FramePerception
+    from avsim.sensors.noise import SensorNoise
+
+    runner = CocoRunner(load_centernet(), config.coco_input, config.coco_upscale, config.min_confidence)
+    return FramePerception("coco", runner, config.min_box_height_px, config.threads,
+                           SensorNoise(config.sensor_noise_std, seed), _regions(config))
+
+
+def _onnx(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
+    from avsim.perception.frame import FramePerception
+    from avsim.perception.onnx.runner import OnnxRunner
+    from avsim.sensors.noise import SensorNoise
+
+    runner = OnnxRunner(config.onnx_path, config.onnx_classes, config.min_confidence, config.threads)
+    return FramePerception("onnx", runner, config.min_box_height_px, config.threads,
+                           SensorNoise(config.sensor_noise_std, seed), _regions(config))
+
+
+PERCEPTIONS.add("coco", _coco)
+PERCEPTIONS.add("onnx", _onnx)
+
+
 def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0) -> Perception:
     """The configured perception; `seed` (the run's scenario.seed) seeds its sensor noise."""
     return PERCEPTIONS.get(config.kind)(config, model, scene, seed)
