@@ -26,7 +26,7 @@ Region = tuple[int, int, int, int]
 
 
 class FrameDetector(Protocol):
-    def detect(self, image_rgb: np.ndarray, camera: str, region_px: Region | None = None) -> list[Detection]: ...
+    def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]: ...
 
 
 class FramePerception(Perception):
@@ -70,7 +70,7 @@ class FramePerception(Perception):
         return frame if self.noise is None else self.noise.apply(frame)
 
     def _network(self, frame: np.ndarray, camera: str) -> list[Detection]:
-        detections = self.detector.detect(frame, camera, self.regions_px.get(camera))
+        detections = self.detector.detect(frame, camera, region_px=self.regions_px.get(camera))
         return [d for d in detections if d.height_px >= self.min_box_height_px]
 
     def close(self) -> None:

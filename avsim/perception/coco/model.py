@@ -18,7 +18,7 @@ import torch
 from torch import nn
 
 from avsim.perception.coco.decode import DecodeSpec, decode_detections
-from avsim.perception.coco.fetch import CACHE_DIR, model_paths
+from avsim.perception.coco import fetch
 from avsim.perception.coco.graph import read_graph
 from avsim.perception.coco.network import CenterNet, dense_node_names
 
@@ -44,12 +44,13 @@ class CocoCenterNet(nn.Module):
         return decode_detections(heatmap, wh, self.spec)
 
 
-def load_centernet(cache_dir: Path = CACHE_DIR) -> CocoCenterNet:
-    """The network from the hash-checked files in `cache_dir`, in eval mode, channels-last.
+def load_centernet(cache_dir: Path | None = None) -> CocoCenterNet:
+    """The network from the hash-checked files in `cache_dir` (default: `fetch.CACHE_DIR`), in
+    eval mode, channels-last.
 
     Raises CocoWeightsError (naming the fetch command) if the files are absent or altered.
     """
-    json_path, _ = model_paths(cache_dir)
+    json_path, _ = fetch.model_paths(fetch.CACHE_DIR if cache_dir is None else cache_dir)
     graph = read_graph(json_path)
     network = CenterNet.from_graph(graph)
     spec = DecodeSpec.from_graph(graph, dense_node_names(graph))
