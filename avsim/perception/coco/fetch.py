@@ -48,11 +48,12 @@ def sha256_of(path: Path) -> str:
     return digest.hexdigest()
 
 
-def model_paths(cache_dir: Path = CACHE_DIR) -> tuple[Path, Path]:
-    """(centernet.json, centernet.bin) in `cache_dir`, each checked against its sha256.
+def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
+    """(centernet.json, centernet.bin) in `cache_dir` (default CACHE_DIR), each checked against its sha256.
 
     Raises CocoWeightsError naming the fetch command if either is absent or altered.
     """
+    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
     paths = []
     for name, expected in MODEL_FILES.values():
         path = cache_dir / name
@@ -106,12 +107,13 @@ def _extract(tarball: Path, workdir: Path) -> dict[str, Path]:
     return extracted
 
 
-def fetch(cache_dir: Path = CACHE_DIR) -> tuple[Path, Path]:
-    """Make sure the cache holds both files with the right hashes; fetch them if not.
+def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
+    """Make sure the cache (default CACHE_DIR) holds both files with the right hashes; fetch them if not.
 
     Returns the (json, bin) paths. Nothing partial is left in `cache_dir`: the files are
     checked in a temporary folder and moved in only when both hashes match.
     """
+    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
     try:
         return model_paths(cache_dir)
     except CocoWeightsError:

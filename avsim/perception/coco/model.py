@@ -50,7 +50,7 @@ def load_centernet(cache_dir: Path | None = None) -> CocoCenterNet:
 
     Raises CocoWeightsError (naming the fetch command) if the files are absent or altered.
     """
-    json_path, _ = fetch.model_paths(fetch.CACHE_DIR if cache_dir is None else cache_dir)
+    json_path, _ = fetch.model_paths(cache_dir)
     graph = read_graph(json_path)
     network = CenterNet.from_graph(graph)
     spec = DecodeSpec.from_graph(graph, dense_node_names(graph))
