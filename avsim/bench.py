@@ -10,7 +10,7 @@ import time
 
 import mujoco
 
-from avsim.config import SimConfig, with_overrides
+from avsim.config import COCO_INPUTS, SimConfig, with_overrides
 from avsim.loop import ClosedLoop, run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
@@ -68,6 +68,40 @@ def _detector_ms_per_frame(config: SimConfig, frames: int, threads: int,
     return float(np.median(times_ms)), float(np.percentile(times_ms, 90))
 
 
+def _approach_frames(config: SimConfig, count: int = 16) -> list:
+    """Front-camera frames along the approach (80 m to 8 m), so boxes of every size (and none) are in the mix."""
+    import numpy as np
+
+    loop = ClosedLoop(with_overrides(config, {"perception": {"kind": "oracle"}}))
+    images = []
+    for dist_m in np.linspace(80.0, 8.0, count):
+        loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        images.append(loop.rig.render_rgb(loop.data, "front"))
+    loop.close()
+    return images
+
+
+def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str) -> tuple[float, float]:
+    """Median and 90th-percentile COCO CenterNet time [ms] per front-camera frame at perception.threads,
+    as deployed: input preparation by `mode`, network, the graph's decoding, mapping and NMS
+    (rendering excluded)."""
+    import numpy as np
+
+    from avsim.perception.factory import build_frame_detector
+
+    detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode}))
+    region = config.perception.front_roi_px
+    images = _approach_frames(config)
+    for image in images[:5]:  # warm-up: first calls allocate and build oneDNN kernels
+        detector.detect(image, "front", region_px=region)
+    times_ms = []
+    for i in range(frames):
+        start = time.perf_counter()
+        detector.detect(images[i % len(images)], "front", region_px=region)
+        times_ms.append(1e3 * (time.perf_counter() - start))
+    return float(np.median(times_ms)), float(np.percentile(times_ms, 90))
+
+
 def _closed_loop_rows(base: SimConfig, perception: str, towns: tuple[str, ...], target: str,
                       cameras: tuple[tuple[str, str], ...] = (("one camera (baseline)", "baseline"),
                                                              ("two cameras (side_camera)", "side_camera"))) -> None:
@@ -103,6 +137,13 @@ def run_benchmarks(quick: bool = False) -> None:
     two_threads = with_overrides(base, {"perception": {"threads": 2}})
     _closed_loop_rows(two_threads, "detector", ("town07",) if quick else ("town07", "town10"), target,
                       (("one camera, 2 threads", "baseline"), ("two cameras, 2 threads", "side_camera")))
+    # The COCO CenterNet (--perception coco), at perception.threads (1) on the front region of interest.
+    for mode in (base.perception.coco_input, *(m for m in COCO_INPUTS if m != base.perception.coco_input)):
+        median_ms, p90_ms = _coco_ms_per_frame(base, 20 if quick else 100, mode)
+        default = " (default)" if mode == base.perception.coco_input else ""
+        print(f"  coco, coco_input={mode:8s}{default:10s} {base.perception.threads} thread  {median_ms:6.1f} ms median"
+              f"    (90th percentile {p90_ms:.1f} ms; target <= 15)")
+    _closed_loop_rows(base, "coco", ("town07",) if quick else ("town07", "town10"), target)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,120 @@
+"""`--perception coco` in the closed loop and through `avsim detect`, on fresh renders."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from avsim import cli
+from avsim.config import PerceptionConfig, SimConfig, with_overrides
+from avsim.loop import ClosedLoop
+from avsim.perception.base import Perception
+from avsim.perception.coco.labels import AVSIM_CLASS_NAMES
+from avsim.perception.factory import build_perception
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.world.towns import TOWNS
+
+THRESHOLD = SimConfig().policy.conf_threshold
+
+
+def _iou(a, b) -> float:
+    ix = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+    inter = ix * iy
+    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
+
+
+def _truth_and_found(loop: ClosedLoop, dist_m: float, camera: str = "front"):
+    loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+    oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=1.0), loop.model, loop.scene)
+    truth = [d for d in oracle.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
+    found = [d for d in loop.perception.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
+    return truth, found
+
+
+@pytest.mark.parametrize("town", TOWNS.names())
+def test_coco_finds_the_clean_stop_sign_at_10_to_20_m_in_every_town(town):
+    loop = ClosedLoop(with_overrides(SimConfig(), {"scenario": {"town": town}, "perception": {"kind": "coco"}}))
+    try:
+        assert isinstance(loop.perception, Perception) and loop.perception.name == "coco"
+        for dist_m in (10.0, 15.0, 20.0):
+            truth, found = _truth_and_found(loop, dist_m)
+            assert len(truth) == 1
+            on_sign = [d for d in found if _iou(d.box_xyxy_px, truth[0].box_xyxy_px) >= 0.5]
+            assert on_sign, f"{town} {dist_m} m: no stop_sign box on the sign (found {[round(d.confidence, 2) for d in found]})"
+            assert on_sign[0].confidence >= THRESHOLD, f"{town} {dist_m} m: the sign scores {on_sign[0].confidence:.2f}"
+    finally:
+        loop.close()
+
+
+def test_other_coco_classes_are_reported_under_their_coco_names():
+    assert AVSIM_CLASS_NAMES[11] == "stop_sign" and "stop sign" not in AVSIM_CLASS_NAMES
+    assert AVSIM_CLASS_NAMES[0] == "person" and AVSIM_CLASS_NAMES[9] == "traffic light"
+
+
+def test_sensor_noise_is_seeded_and_changes_the_scores():
+    def scores(noise_std: float, seed: int) -> list[float]:
+        config = with_overrides(SimConfig(), {"scenario": {"seed": seed},
+                                              "perception": {"kind": "coco", "sensor_noise_std": noise_std}})
+        loop = ClosedLoop(config)
+        try:
+            return [d.confidence for d in _truth_and_found(loop, 20.0)[1]]
+        finally:
+            loop.close()
+
+    clean = scores(0.0, 0)
+    assert scores(4.0, 0) == scores(4.0, 0)  # same seed, same noise, same scores
+    assert scores(4.0, 0) != clean and scores(4.0, 1) != scores(4.0, 0)
+
+
+def test_avsim_detect_on_a_rendered_frame_finds_the_sign_within_3_px(tmp_path, capsys):
+    loop = ClosedLoop(with_overrides(SimConfig(), {"perception": {"kind": "oracle", "min_box_height_px": 1.0}}))
+    try:
+        loop.vehicle.place(loop.scene.stop_line_x_m - 20.0 - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        frame = loop.rig.render_rgb(loop.data, "front")
+        truth = [d for d in loop.perception.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"]
+    finally:
+        loop.close()
+    path = tmp_path / "frame.png"
+    cv2.imwrite(str(path), np.ascontiguousarray(frame[..., ::-1]))
+    assert len(truth) == 1
+    for perception in ("coco", "detector"):
+        assert cli.main(["detect", "--perception", perception, str(path)]) == 0
+        record = json.loads(capsys.readouterr().out.splitlines()[0])
+        assert (record["image"], record["width"], record["height"], record["perception"]) == (str(path), 640, 480, perception)
+        stops = [d for d in record["detections"] if d["class"] == "stop_sign"]
+        assert stops and stops[0]["confidence"] >= THRESHOLD, (perception, record["detections"][:3])
+        error_px = max(abs(a - b) for a, b in zip(stops[0]["box_xyxy_px"], truth[0].box_xyxy_px))
+        assert error_px <= 3.0, f"{perception}: box {stops[0]['box_xyxy_px']} is {error_px:.1f} px from {truth[0].box_xyxy_px}"
+
+
+def test_avsim_detect_takes_photos_of_any_size(tmp_path, capsys):
+    photo = np.full((301, 457, 3), 90, np.uint8)
+    path = tmp_path / "photo.jpg"
+    cv2.imwrite(str(path), photo)
+    for mode in ("resize", "crop", "upscale"):
+        assert cli.main(["detect", "--perception", "coco", "--set", f"perception.coco_input={mode}", str(path)]) == 0
+        record = json.loads(capsys.readouterr().out)
+        assert (record["width"], record["height"]) == (457, 301)
+        for det in record["detections"]:
+            x0, y0, x1, y1 = det["box_xyxy_px"]
+            assert 0 <= x0 <= x1 <= 457 and 0 <= y0 <= y1 <= 301
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--perception", "oracle"], "oracle perception reads ground truth"),
+    (["--perception", "coco", "--set", "perception.coco_input=zoom"], "perception.coco_input must be one of"),
+    (["--perception", "coco", "MISSING"], "does not exist"),
+])
+def test_avsim_detect_refuses_bad_input_in_one_line(tmp_path, capsys, args, message):
+    image = tmp_path / "frame.png"
+    cv2.imwrite(str(image), np.zeros((48, 64, 3), np.uint8))
+    argv = ["detect", *[str(tmp_path / "nope.png") if a == "MISSING" else a for a in args]]
+    if "MISSING" not in args:
+        argv.append(str(image))
+    code = cli.main(argv)
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert code == 2 and len(lines) == 1 and message in lines[0], captured.err
+    assert captured.out == ""
