@@ -217,9 +217,9 @@ its min_box_height_px range limit do not apply).
 Images of any size:
   detector  letterboxed into its 640x480 input (aspect kept, grey padding), boxes mapped back;
   coco      by perception.coco_input: resize squeezes the whole image to 512x512 as
-            @vladmandic/human does (a non-4:3 photo is distorted); crop runs the network on
-            the image at its own resolution (padded to a multiple of 32: slow for large
-            photos); upscale enlarges it by perception.coco_upscale first;
+            @vladmandic/human does (aspect not kept); crop runs the network on the image at
+            its own resolution (padded to a multiple of 32; slow and memory-hungry for
+            large photos); upscale enlarges it by perception.coco_upscale first;
   onnx      letterboxed into the model's own input size (640x640 if it is dynamic).
 The oracle needs a simulated scene and cannot run on an image."""
 

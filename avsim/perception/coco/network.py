@@ -6,7 +6,12 @@ regression), and turns every node on the way into a module of `ops` whose weight
 graph's dequantised constants. The graph's decoding tail (MaxPool, Equal, TopKV2, GatherV2
 and their index arithmetic) lives in `decode`, which reproduces it for any input size.
 
-Input: (B, 3, H, W) float RGB, values 0-255 (the graph does its own normalisation), H and W
+Two elementwise tails that follow a conv are folded into it (`_foldable_activations`): the
+hard swish MobileNetV3 exports as four nodes, and a sigmoid; the conv then computes them in
+the graph's own order (see `ops.TfConv2d`), or as oneDNN post-ops when nothing needs gradients.
+
+Input: (B, 3, H, W) float RGB, values 0-255 as the graph takes them (it has no separate
+normalisation step: its first conv works on raw values), H and W
 multiples of 32 (the head upsamples stride-32 features twice by 2 and concatenates them with
 stride-16 and stride-8 ones). The graph was exported for 512 x 512.
 Outputs, both (B, ., H/4, W/4), NCHW:
@@ -122,10 +127,9 @@ class CenterNet(nn.Module):
             if node.name in absorbed:
                 continue
             dynamic = tuple(name for name, _ in node.inputs if name not in graph.constants)
-            activation, scale, output = folded.get(node.name, (None, None, (node.name,)))[0], None, node.name
-            if node.name in folded:
-                activation, scale, absorbed_nodes = folded[node.name]
-                output = absorbed_nodes[-1]
+            # A conv with a folded tail produces the tail's last value, under that name.
+            activation, scale, produced = folded.get(node.name, (None, None, (node.name,)))
+            output = produced[-1]
             modules.append(_build_module(node, graph, spatial, activation, scale))
             steps.append(_Step(len(modules) - 1, dynamic, output, ()))
             names.append(output)

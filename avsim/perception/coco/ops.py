@@ -252,12 +252,15 @@ def resize_bilinear_tf(x: torch.Tensor, out_hw: tuple[int, int]) -> torch.Tensor
         return x
     y0, y1, wy = _source_taps(out_h, in_h, x.device)
     x0, x1, wx = _source_taps(out_w, in_w, x.device)
-    rows_top, rows_bottom = x.index_select(-2, y0), x.index_select(-2, y1)
-    top = rows_top.index_select(-1, x0)
-    top = top + (rows_top.index_select(-1, x1) - top) * wx
-    bottom = rows_bottom.index_select(-1, x0)
-    bottom = bottom + (rows_bottom.index_select(-1, x1) - bottom) * wx
-    return top + (bottom - top) * wy.reshape(-1, 1)
+    # Gather whole rows, then columns, in NHWC: contiguous copies when x is channels-last.
+    pixels = x.permute(0, 2, 3, 1)
+    rows_top, rows_bottom = pixels.index_select(1, y0), pixels.index_select(1, y1)
+    wx = wx.reshape(-1, 1)
+    top = rows_top.index_select(2, x0)
+    top = top + (rows_top.index_select(2, x1) - top) * wx
+    bottom = rows_bottom.index_select(2, x0)
+    bottom = bottom + (rows_bottom.index_select(2, x1) - bottom) * wx
+    return (top + (bottom - top) * wy.reshape(-1, 1, 1)).permute(0, 3, 1, 2)
 
 
 class ResizeBilinear(nn.Module):
