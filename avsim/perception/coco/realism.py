@@ -13,6 +13,8 @@ figures are the network's own. Nothing is tuned to this detector.
 
     python -m avsim.perception.coco.realism --data data/coco_eval --modes resize,crop,upscale --out results/coco_realism
 
+Several --data folders are scored and reported together.
+
 Writes OUT/frames.jsonl (one line per frame and mode) and OUT/report.md, and prints the report.
 """
 
@@ -161,24 +163,30 @@ def report(rows: list[dict], threshold: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m avsim.perception.coco.realism", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", required=True, help="dataset written by `avsim detector make-data`")
+    parser.add_argument("--data", nargs="+", required=True, help="datasets written by `avsim detector make-data`")
     parser.add_argument("--modes", default=",".join(COCO_INPUTS), help="comma-separated perception.coco_input values")
     parser.add_argument("--threshold", type=float, default=0.5, help="confidence that counts (the braking threshold)")
+    parser.add_argument("--upscale", type=float, help="perception.coco_upscale for the upscale mode (default: the config's)")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     parser.add_argument("--limit", type=int, help="only the first N frames")
     parser.add_argument("--out", default="results/coco_realism")
     args = parser.parse_args(argv)
     modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())
-    data = Path(args.data)
     try:
         bad = [m for m in modes if m not in COCO_INPUTS]
         if bad or not modes:
             raise ConfigError(f"unknown --modes {bad}; choose from {', '.join(COCO_INPUTS)}")
-        if not (data / "train.jsonl").is_file():
-            raise ConfigError(f"{data} has no train.jsonl; make one with `avsim detector make-data --out {data}`")
+        for data in map(Path, args.data):
+            if not (data / "train.jsonl").is_file():
+                raise ConfigError(f"{data} has no train.jsonl; make one with `avsim detector make-data --out {data}`")
         defaults = PerceptionConfig()
-        rows = score_dataset(data, modes, args.threshold, args.workers, defaults.coco_upscale, defaults.min_confidence,
-                             args.limit)
+        upscale = defaults.coco_upscale if args.upscale is None else args.upscale
+        if not 1 <= upscale <= 4:
+            raise ConfigError(f"--upscale must be in [1, 4], got {upscale}")
+        rows = []
+        for data in map(Path, args.data):
+            for row in score_dataset(data, modes, args.threshold, args.workers, upscale, defaults.min_confidence, args.limit):
+                rows.append({**row, "image": str(data / row["image"])})
     except ConfigError as exc:
         print(f"avsim: error: {exc}", file=sys.stderr)
         return exc.exit_code

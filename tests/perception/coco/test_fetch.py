@@ -96,3 +96,16 @@ def test_coco_perception_without_good_weights_is_one_line_naming_the_fetch_comma
     assert "python -m avsim.perception.coco.fetch" in lines[0]
     assert ("missing" if damage == "missing" else "sha256") in lines[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["detector", "oracle"])
+def test_other_perceptions_never_need_the_coco_files(tmp_path, monkeypatch, kind):
+    from avsim.config import SimConfig, with_overrides
+    from avsim.loop import ClosedLoop
+
+    monkeypatch.setattr(fetch, "CACHE_DIR", tmp_path / "absent")
+    loop = ClosedLoop(with_overrides(SimConfig(), {"perception": {"kind": kind}}))
+    try:
+        loop.step()
+    finally:
+        loop.close()

@@ -63,9 +63,9 @@ def test_sensor_noise_is_seeded_and_changes_the_scores():
         finally:
             loop.close()
 
-    clean = scores(0.0, 0)
-    assert scores(4.0, 0) == scores(4.0, 0)  # same seed, same noise, same scores
-    assert scores(4.0, 0) != clean and scores(4.0, 1) != scores(4.0, 0)
+    noisy = scores(4.0, 0)
+    assert scores(4.0, 0) == noisy  # same seed, same noise, same scores
+    assert noisy != scores(0.0, 0) and scores(4.0, 1) != noisy
 
 
 def test_avsim_detect_on_a_rendered_frame_finds_the_sign_within_3_px(tmp_path, capsys):
