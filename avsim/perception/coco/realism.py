@@ -73,6 +73,7 @@ def _score_frame(args: tuple[str, dict, float]) -> list[dict]:
         best = max((d.confidence for d, hit in zip(stops, matched) if hit), default=0.0)
         rows.append({"image": record["image"], "mode": mode, "town": record["meta"]["town"], "camera": camera,
                      "dist_m": record["meta"]["dist_m"], "has_stop_sign": bool(len(truth)),
+                     "has_any_sign": bool(record["classes"]),
                      "target_is_stop_sign": record["meta"]["target_kind"] == "stop_sign",
                      "found": bool(matched.any()), "best_matched_conf": round(float(best), 4),
                      "false_stop_signs": int(np.sum(counted & ~matched))})
@@ -136,17 +137,19 @@ def report(rows: list[dict], threshold: float) -> str:
                         pooled.append(r["found"])
             lines.append(f"| {mode} | " + " | ".join(_cell(by_bin[b]) for b in bins) + f" | {_cell(pooled)} |")
         lines.append("")
-    lines += ["## False `stop_sign` detections per frame, frames without a labelled stop sign", "",
-              "| mode | " + " | ".join(towns) + " | all |", "|---|" + "---|" * (len(towns) + 1)]
-    for mode in modes:
-        cells = []
-        for town in towns + ["all"]:
-            frames = [r for r in rows if r["mode"] == mode and not r["has_stop_sign"] and town in (r["town"], "all")]
-            total = sum(r["false_stop_signs"] for r in frames)
-            with_any = sum(r["false_stop_signs"] > 0 for r in frames)
-            cells.append(f"{total / len(frames):.3f} ({with_any}/{len(frames)} frames)" if frames else "–")
-        lines.append(f"| {mode} | " + " | ".join(cells) + " |")
-    lines.append("")
+    for title, key in (("without a labelled stop sign", "has_stop_sign"), ("without any labelled sign", "has_any_sign")):
+        lines += [f"## False `stop_sign` detections per frame, frames {title}", "",
+                  "Cells: detections per frame (frames with at least one / frames).", "",
+                  "| mode | " + " | ".join(towns) + " | all |", "|---|" + "---|" * (len(towns) + 1)]
+        for mode in modes:
+            cells = []
+            for town in towns + ["all"]:
+                frames = [r for r in rows if r["mode"] == mode and not r[key] and town in (r["town"], "all")]
+                total = sum(r["false_stop_signs"] for r in frames)
+                with_any = sum(r["false_stop_signs"] > 0 for r in frames)
+                cells.append(f"{total / len(frames):.3f} ({with_any}/{len(frames)})" if frames else "–")
+            lines.append(f"| {mode} | " + " | ".join(cells) + " |")
+        lines.append("")
     for mode in modes:
         for camera in ("front", "side"):
             lines += [f"## Recall per town, {camera} camera, `{mode}`", "",
