@@ -78,17 +78,49 @@ def peak_scores(heatmap: torch.Tensor) -> torch.Tensor:
     return heatmap * (heatmap == pooled).to(heatmap.dtype)
 
 
-def decode_detections(heatmap: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec = DecodeSpec()) -> torch.Tensor:
+def _peaks_at_or_above(heatmap: torch.Tensor, min_score: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """(scores, flat NHWC indices), in index order, of the 3x3 peaks of a (1, C, H, W) heatmap
+    that score at least `min_score`: `peak_scores` evaluated only where it can pass.
+
+    Each candidate is compared with its 3x3 neighbourhood (outside the map counts as -inf,
+    as in the max pool), so the test is the graph's, cell for cell.
+    """
+    _, num_classes, height, width = heatmap.shape
+    nhwc = heatmap[0].permute(1, 2, 0)  # a view; contiguous for channels-last maps
+    index = torch.nonzero((nhwc >= min_score).reshape(-1)).squeeze(1)
+    values = nhwc.reshape(-1)[index]
+    cls = index % num_classes
+    cell = torch.div(index, num_classes, rounding_mode="floor")
+    rows, cols = torch.div(cell, width, rounding_mode="floor"), cell % width
+    padded = F.pad(nhwc.permute(2, 0, 1).unsqueeze(0), (1, 1, 1, 1), value=float("-inf"))[0]
+    neighbourhood = torch.stack([padded[cls, rows + dy, cols + dx] for dy in range(3) for dx in range(3)])
+    is_peak = values == neighbourhood.max(dim=0).values
+    return values[is_peak], index[is_peak]
+
+
+def decode_detections(heatmap: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec = DecodeSpec(),
+                      min_score: float | None = None) -> torch.Tensor:
     """heatmap (B, C, H, W), wh (B, 4, H, W) -> (B, k, 6): x1, y1, x2, y2 [input px], score, class.
 
     The class is 0-based in COCO-80 order (11 = stop sign). Rows are score-sorted.
+    min_score: if given (batch 1 only), return only the rows scoring at least this, found
+    without a max pool and top-k over the whole map: exactly the graph's rows, filtered. For
+    inference, where the low peaks are dropped anyway; the default path is the graph's.
     """
     batch, num_classes, height, width = heatmap.shape
     if num_classes != spec.num_classes:
         raise ValueError(f"heatmap has {num_classes} classes, the graph decodes {spec.num_classes}")
-    # (row, col, class) order, as the graph's NHWC reshape flattens it.
-    flat = peak_scores(heatmap).permute(0, 2, 3, 1).reshape(batch, -1)
-    scores, index = topk_lowest_index_first(flat, min(spec.k, flat.shape[1]))
+    if min_score is not None:
+        if batch != 1:
+            raise ValueError(f"decoding with min_score takes one image, got {batch}")
+        values, index = _peaks_at_or_above(heatmap, min_score)
+        # Stable: ties keep the lower index first, as TF.js's top-k does.
+        order = torch.sort(values, descending=True, stable=True).indices[:spec.k]
+        scores, index = values[order].unsqueeze(0), index[order].unsqueeze(0)
+    else:
+        # (row, col, class) order, as the graph's NHWC reshape flattens it.
+        flat = peak_scores(heatmap).permute(0, 2, 3, 1).reshape(batch, -1)
+        scores, index = topk_lowest_index_first(flat, min(spec.k, flat.shape[1]))
     classes = index % num_classes
     cell = torch.div(index, num_classes, rounding_mode="floor")
     rows = torch.div(cell, width, rounding_mode="floor")

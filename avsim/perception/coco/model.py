@@ -38,10 +38,13 @@ class CocoCenterNet(nn.Module):
         """images (B, 3, H, W) RGB 0-255 -> (heatmap (B, 80, H/4, W/4), wh (B, 4, H/4, W/4))."""
         return self.network(images)
 
-    def detect(self, images: torch.Tensor) -> torch.Tensor:
-        """images (B, 3, H, W) RGB 0-255 -> (B, k, 6) detections, as `tower_0/detections`."""
+    def detect(self, images: torch.Tensor, min_score: float | None = None) -> torch.Tensor:
+        """images (B, 3, H, W) RGB 0-255 -> (B, k, 6) detections, as `tower_0/detections`.
+
+        min_score: only the rows scoring at least this (batch 1; `decode_detections`).
+        """
         heatmap, wh = self.network(images)
-        return decode_detections(heatmap, wh, self.spec)
+        return decode_detections(heatmap, wh, self.spec, min_score)
 
 
 def load_centernet(cache_dir: Path | None = None) -> CocoCenterNet:

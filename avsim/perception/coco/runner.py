@@ -33,12 +33,14 @@ class CocoRunner:
         self.min_confidence = min_confidence
         self.iou_threshold = iou_threshold
 
-    def raw_detections(self, image_rgb: np.ndarray, region_px: Region | None = None) -> np.ndarray:
-        """(k, 6) float64: x1, y1, x2, y2 [image px, unclipped], score, class id; all k peaks."""
+    def raw_detections(self, image_rgb: np.ndarray, region_px: Region | None = None,
+                       min_score: float | None = None) -> np.ndarray:
+        """(D, 6) float64: x1, y1, x2, y2 [image px, unclipped], score, class id: the graph's k
+        peaks, or those scoring at least `min_score`."""
         check_image(image_rgb)
         with torch.inference_mode():
             x, window = network_input(image_tensor(image_rgb), self.input_mode, region_px, self.upscale)
-            det = self.model.detect(x)[0].double().numpy()
+            det = self.model.detect(x, min_score)[0].double().numpy()
         det[:, :4] = window.to_image(det[:, :4])
         return det
 
@@ -49,8 +51,7 @@ class CocoRunner:
         with `crop` and `upscale` the network also sees only this region.
         """
         image_h, image_w = image_rgb.shape[:2]
-        det = self.raw_detections(image_rgb, region_px)
-        det = det[det[:, 4] >= self.min_confidence]
+        det = self.raw_detections(image_rgb, region_px, self.min_confidence)
         det[:, :4] = np.clip(det[:, :4], 0.0, [image_w, image_h, image_w, image_h])
         if region_px is not None:
             x0, y0, x1, y1 = region_px

@@ -89,3 +89,13 @@ def test_decoding_matches_the_graph_tail_including_ties():
 def test_topk_breaks_ties_by_the_lower_index():
     values, indices = topk_lowest_index_first(torch.tensor([[0.5, 0.75, 0.5, 0.75, 0.25, 0.5]]), 4)
     assert indices.tolist() == [[1, 3, 0, 2]] and values.tolist() == [[0.75, 0.75, 0.5, 0.5]]
+
+
+@pytest.mark.parametrize("min_score", [0.0, 0.3, 0.9])
+def test_thresholded_decoding_is_the_graphs_rows_filtered(min_score):
+    rng = np.random.default_rng(4)
+    heatmap = torch.from_numpy((rng.integers(0, 20, (1, 80, 12, 16)) / 20.0).astype(np.float32))
+    wh = torch.from_numpy(rng.uniform(0, 30, (1, 4, 12, 16)).astype(np.float32))
+    full = decode_detections(heatmap, wh)[0]
+    fast = decode_detections(heatmap.contiguous(memory_format=torch.channels_last), wh, min_score=min_score)[0]
+    assert torch.equal(fast, full[full[:, 4] >= min_score])
