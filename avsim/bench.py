@@ -46,26 +46,10 @@ def _detector_ms_per_frame(config: SimConfig, frames: int, threads: int,
     """Median and 90th-percentile detector time [ms] on rendered front-camera frames
     (pre-processing, network and NMS; rendering excluded) with `threads` torch threads,
     on the whole frame or on a region of interest (`region_px`)."""
-    import numpy as np
-
     from avsim.perception.detector.perception import DetectorPerception
 
-    loop = ClosedLoop(config)
     detector = DetectorPerception(config.perception.weights_path, config.perception.min_confidence, threads=threads).runner
-    # Frames along the approach, so boxes of every size (and none) are in the mix.
-    images = []
-    for dist_m in np.linspace(80.0, 8.0, 16):
-        loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
-        images.append(loop.rig.render_rgb(loop.data, "front"))
-    loop.close()
-    for image in images[:5]:  # warm-up: first calls allocate
-        detector.detect(image, "front", region_px=region_px)
-    times_ms = []
-    for i in range(frames):
-        start = time.perf_counter()
-        detector.detect(images[i % len(images)], "front", region_px=region_px)
-        times_ms.append(1e3 * (time.perf_counter() - start))
-    return float(np.median(times_ms)), float(np.percentile(times_ms, 90))
+    return _ms_per_frame(detector, _approach_frames(config), frames, region_px)
 
 
 def _approach_frames(config: SimConfig, count: int = 16) -> list:
@@ -85,19 +69,22 @@ def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str) -> tuple[float
     """Median and 90th-percentile COCO CenterNet time [ms] per front-camera frame at perception.threads,
     as deployed: input preparation by `mode`, network, the graph's decoding, mapping and NMS
     (rendering excluded)."""
-    import numpy as np
-
     from avsim.perception.factory import build_frame_detector
 
     detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode}))
-    region = config.perception.front_roi_px
-    images = _approach_frames(config)
-    for image in images[:5]:  # warm-up: first calls allocate and build oneDNN kernels
-        detector.detect(image, "front", region_px=region)
+    return _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
+
+
+def _ms_per_frame(detector, images: list, frames: int, region_px: tuple[int, int, int, int] | None) -> tuple[float, float]:
+    """Median and 90th percentile [ms] of `detector.detect` over `frames` calls cycling through `images`."""
+    import numpy as np
+
+    for image in images[:5]:  # warm-up: first calls allocate (and build oneDNN kernels)
+        detector.detect(image, "front", region_px=region_px)
     times_ms = []
     for i in range(frames):
         start = time.perf_counter()
-        detector.detect(images[i % len(images)], "front", region_px=region)
+        detector.detect(images[i % len(images)], "front", region_px=region_px)
         times_ms.append(1e3 * (time.perf_counter() - start))
     return float(np.median(times_ms)), float(np.percentile(times_ms, 90))
 

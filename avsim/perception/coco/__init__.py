@@ -17,5 +17,5 @@ the graph itself, with no TensorFlow, ONNX or Node at run time:
   realism     recall against distance and false stop signs on `avsim detector make-data` renders
 
 The port matches the TF.js runtime (Node, pure-JS CPU backend) to 0.003 px and 2e-6 in
-score on avsim renders (`tests/perception/coco/test_reference.py`).
+score on avsim renders (`tests/perception/coco/test_coco_reference.py`).
 """

@@ -5,7 +5,7 @@ letterboxed into H x W (grey 114 padding), and returns (1, 4 + C, N):
   rows 0-3     cx, cy, w, h of each cell's box [input px]
   rows 4..4+C  per-class scores, sigmoid(objectness) * sigmoid(class logit)
 over the N cells of both strides. So `--perception onnx` runs it exactly as it runs a
-user's YOLO export, and the round trip (`tests/perception/onnx/`) checks that layout
+user's YOLO export, and the round trip (`tests/perception/detector/test_export_onnx.py`) checks that layout
 against the PyTorch detector. H x W is the detector's deployed 480 x 640 by default.
 """
 

@@ -89,17 +89,26 @@ def test_avsim_detect_on_a_rendered_frame_finds_the_sign_within_3_px(tmp_path, c
         assert error_px <= 3.0, f"{perception}: box {stops[0]['box_xyxy_px']} is {error_px:.1f} px from {truth[0].box_xyxy_px}"
 
 
-def test_avsim_detect_takes_photos_of_any_size(tmp_path, capsys):
-    photo = np.full((301, 457, 3), 90, np.uint8)
+@pytest.mark.parametrize("mode", ["resize", "crop", "upscale"])
+def test_avsim_detect_maps_boxes_back_on_images_of_any_size(tmp_path, capsys, mode):
+    """A frame stretched to 900x500 (another size and aspect): the sign's box lands on the stretched sign."""
+    loop = ClosedLoop(with_overrides(SimConfig(), {"perception": {"kind": "oracle", "min_box_height_px": 1.0}}))
+    try:
+        loop.vehicle.place(loop.scene.stop_line_x_m - 12.0 - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        frame = loop.rig.render_rgb(loop.data, "front")
+        truth = [d for d in loop.perception.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"][0]
+    finally:
+        loop.close()
+    sx, sy = 900 / 640, 500 / 480
     path = tmp_path / "photo.jpg"
-    cv2.imwrite(str(path), photo)
-    for mode in ("resize", "crop", "upscale"):
-        assert cli.main(["detect", "--perception", "coco", "--set", f"perception.coco_input={mode}", str(path)]) == 0
-        record = json.loads(capsys.readouterr().out)
-        assert (record["width"], record["height"]) == (457, 301)
-        for det in record["detections"]:
-            x0, y0, x1, y1 = det["box_xyxy_px"]
-            assert 0 <= x0 <= x1 <= 457 and 0 <= y0 <= y1 <= 301
+    cv2.imwrite(str(path), cv2.resize(np.ascontiguousarray(frame[..., ::-1]), (900, 500), interpolation=cv2.INTER_LINEAR))
+    assert cli.main(["detect", "--perception", "coco", "--set", f"perception.coco_input={mode}", str(path)]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert (record["width"], record["height"]) == (900, 500)
+    x0, y0, x1, y1 = truth.box_xyxy_px
+    stretched = (x0 * sx, y0 * sy, x1 * sx, y1 * sy)
+    on_sign = [d for d in record["detections"] if d["class"] == "stop_sign" and _iou(d["box_xyxy_px"], stretched) >= 0.5]
+    assert on_sign, f"{mode}: no stop_sign box on the sign at {stretched}: {record['detections'][:3]}"
 
 
 @pytest.mark.parametrize("args,message", [
