@@ -127,3 +127,19 @@ def test_avsim_detect_refuses_bad_input_in_one_line(tmp_path, capsys, args, mess
     lines = captured.err.splitlines()
     assert code == 2 and len(lines) == 1 and message in lines[0], captured.err
     assert captured.out == ""
+
+
+def test_two_cameras_at_once_give_the_same_detections_as_one_after_the_other():
+    config = with_overrides(SimConfig(), {"perception": {"kind": "coco", "sensor_noise_std": 2.0}})
+    results = []
+    for together in (True, False):
+        loop = ClosedLoop(config)
+        try:
+            loop.vehicle.place(loop.scene.stop_line_x_m - 18.0 - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+            if together:
+                results.append(loop.perception.detect_cameras(loop.rig, loop.data, ("front", "side")))
+            else:
+                results.append({camera: loop.perception.detect(loop.rig, loop.data, camera) for camera in ("front", "side")})
+        finally:
+            loop.close()
+    assert results[0] == results[1] and results[0]["front"] and results[0]["side"]
