@@ -7,7 +7,8 @@ built. What needs care, and how each op matches TensorFlow:
 - 'SAME' padding (`same_padding`): TensorFlow pads total = max((ceil(n/s) - 1)*s + k - n, 0)
   with the odd pixel at the *end*. A stride-2 3x3 conv on 512 px pads 0 before and 1 after,
   where PyTorch's `padding=1` would pad 1 on both sides and shift every output by a pixel.
-  Asymmetric cases get an explicit `F.pad`; symmetric ones use the conv's own padding.
+  Asymmetric cases run a kernel with one leading zero row / column under symmetric padding
+  of the larger side (`_shift_for_padding`): TF's window exactly, with no padded copy.
 - `_FusedConv2D` / `FusedDepthwiseConv2dNative`: the conv, then `fused_ops` in order:
   BiasAdd (one extra argument), then Relu, Relu6 or Prelu (its alpha is a second extra
   argument). `epsilon` only matters for a fused FusedBatchNorm, which this graph never has
