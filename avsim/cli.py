@@ -148,10 +148,24 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_snapshot(args: argparse.Namespace) -> int:
-    from avsim.snapshot import save_snapshot
+    from avsim.snapshot import check_snapshot_distance, save_snapshot, save_town_strip
+    from avsim.world.towns import TOWNS
 
     config = _config_from_args(args)
-    for path in save_snapshot(config, args.dist_m, args.out):
+    check_snapshot_distance(args.dist_m)
+    if args.towns is None:
+        if args.strip:
+            raise ConfigError("--strip needs --towns (e.g. --towns town07,town03,town10): it puts their front cameras side by side")
+        paths = save_snapshot(config, args.dist_m, args.out)
+    else:
+        towns = [t.strip() for t in args.towns.split(",") if t.strip()]
+        for town in towns:
+            TOWNS.get(town)  # every name checked before anything renders
+        if not args.strip:
+            raise ConfigError("--towns goes with --strip (one picture of the towns' front cameras side by side); "
+                              "for one town's cameras use --town")
+        paths = [save_town_strip(config, towns, args.dist_m, args.out)]
+    for path in paths:
         print(f"wrote {path}")
     return 0
 
@@ -431,8 +445,11 @@ def build_parser() -> argparse.ArgumentParser:
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     _add_scenario_flags(snap)
     snap.add_argument("--dist-m", type=float, default=30.0, help="front bumper to stop line [m]")
-    add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png"), default="snapshot",
-                        help="output prefix; writes PREFIX_front.png and PREFIX_side.png")
+    snap.add_argument("--towns", help="with --strip: comma-separated towns whose front cameras are put side by side")
+    snap.add_argument("--strip", action="store_true",
+                      help="write PREFIX.png: the front camera of each of --towns, side by side at half size")
+    add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png", ".png"), default="snapshot",
+                        help="output prefix; writes PREFIX_front.png and PREFIX_side.png (PREFIX.png with --strip)")
     snap.set_defaults(func=_cmd_snapshot)
 
     detect = sub.add_parser("detect", help="run a perception on image files; one JSON line of detections per image",

@@ -1,4 +1,4 @@
-"""Camera snapshots: what the car sees at a given distance from the stop line."""
+"""Camera snapshots: what the car sees at a given distance from the stop line, one town or several side by side."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import math
 from pathlib import Path
 
 import cv2
+import numpy as np
 
-from avsim.config import SimConfig
+from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
 from avsim.outputs import write_image
@@ -28,14 +29,14 @@ def check_snapshot_distance(bumper_to_stop_line_m: float) -> None:
                           f"got {bumper_to_stop_line_m}")
 
 
-def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: str) -> list[Path]:
-    """Place the car `bumper_to_stop_line_m` before the stop line, at rest, and save
-    `{out_prefix}_{camera}.png` for each camera, with the oracle's boxes drawn."""
+def camera_views(config: SimConfig, bumper_to_stop_line_m: float) -> dict[str, np.ndarray]:
+    """Each camera's (H, W, 3) BGR image with the car at rest `bumper_to_stop_line_m` before the
+    stop line, with the configured perception's boxes and scores drawn."""
     check_snapshot_distance(bumper_to_stop_line_m)
     loop = ClosedLoop(config)
     try:
         loop.vehicle.place(loop.scene.stop_line_x_m - bumper_to_stop_line_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
-        paths = []
+        views = {}
         for camera in CAMERA_NAMES:
             image = loop.rig.render_rgb(loop.data, camera)[..., ::-1].copy()  # BGR for OpenCV
             for det in loop.perception.detect(loop.rig, loop.data, camera):
@@ -43,7 +44,23 @@ def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: s
                 cv2.rectangle(image, (x0, y0), (x1, y1), (0, 255, 0), 1)
                 cv2.putText(image, f"{det.class_name} {det.confidence:.2f}", (x0, max(y0 - 4, 10)),
                             cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 255, 0), 1, cv2.LINE_AA)
-            paths.append(write_image(f"{out_prefix}_{camera}.png", image))
-        return paths
+            views[camera] = image
+        return views
     finally:
         loop.close()
+
+
+def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: str) -> list[Path]:
+    """Save `{out_prefix}_{camera}.png` for each camera (see `camera_views`)."""
+    views = camera_views(config, bumper_to_stop_line_m)
+    return [write_image(f"{out_prefix}_{camera}.png", image) for camera, image in views.items()]
+
+
+def save_town_strip(config: SimConfig, towns: list[str], bumper_to_stop_line_m: float, out_prefix: str) -> Path:
+    """Save `{out_prefix}.png`: the front camera of each town side by side, each at half size
+    (the README's picture of the towns)."""
+    tiles = []
+    for town in towns:
+        front = camera_views(with_overrides(config, {"scenario": {"town": town}}), bumper_to_stop_line_m)["front"]
+        tiles.append(cv2.resize(front, (front.shape[1] // 2, front.shape[0] // 2), interpolation=cv2.INTER_AREA))
+    return write_image(f"{out_prefix}.png", np.hstack(tiles))

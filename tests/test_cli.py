@@ -66,6 +66,27 @@ def test_snapshot_bad_input_exits_2(tmp_path, capsys, no_simulation):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv, mention", [
+    (["--strip"], "--towns"),
+    (["--towns", "town07,town03"], "--strip"),
+    (["--towns", "town07,town99", "--strip"], "town99"),
+])
+def test_snapshot_strip_bad_input_exits_2_before_rendering(tmp_path, capsys, no_simulation, argv, mention):
+    code = cli.main(["snapshot", *argv, "--out", str(tmp_path / "strip")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and mention in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_snapshot_strip_puts_the_towns_front_cameras_side_by_side_at_half_size(tmp_path):
+    import cv2
+
+    assert cli.main(["snapshot", "--towns", "town07,town10", "--strip", "--set", "perception.kind=oracle",
+                     "--out", str(tmp_path / "strip")]) == 0
+    image = cv2.imread(str(tmp_path / "strip.png"))
+    assert image.shape == (240, 640, 3)
+
+
 # ---- _parse_set ------------------------------------------------------------------------
 
 def test_parse_set_nests_dotted_keys():

@@ -18,10 +18,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from avsim.config import VehicleConfig, with_overrides
+from avsim.config import SimConfig, VehicleConfig, with_overrides
 from avsim.experiments import study
 from avsim.experiments.spec import Experiment
 from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
+from avsim.stats import rate_with_interval
 from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
@@ -267,6 +268,42 @@ def compare_section(cells: Cells, experiment: Experiment, other: Experiment | No
                      f"{b}: stopped", "bumper before sign", "braking began", "full brake"], rows)]
 
 
+def sensitivity_section(cells: Cells, experiment: Experiment, by_name: dict[str, Experiment]) -> list[str]:
+    """One table per policy or perception constant that varies across the cells: rows (policy,
+    sign), one column per value of the constant, the other varied constants at their defaults.
+    Each entry: stopped before the sign, with its Wilson 95 % interval, and the mean bumper-to-sign
+    margin [m] at rest (negative: past it)."""
+    flat = {cell.name: _tunable_values(cell.config) for cell in experiment.cells}
+    defaults = _tunable_values(SimConfig())
+    varied = sorted(k for k in defaults if k != "policy.name" and len({values[k] for values in flat.values()}) > 1)
+    lines = []
+    for key in varied:
+        others = [k for k in varied if k != key]
+        chosen = [c for c in experiment.cells if all(flat[c.name][k] == defaults[k] for k in others)]
+        values = sorted({flat[c.name][key] for c in chosen}, key=lambda v: (v is None, v))
+        rows: dict[tuple[str, str], dict[Any, str]] = {}
+        for cell in chosen:
+            results = cells.of(experiment.name, cell.name)
+            stopped = sum(r["outcome"] in STOPPED_BEFORE_SIGN for r in results)
+            margin = fmt(cells.values(experiment.name, cell.name, "sign_margin_m"))
+            row = rows.setdefault((cell.config.policy.name, cell.config.scenario.sign), {})
+            row[flat[cell.name][key]] = f"{rate_with_interval(stopped, len(results))}, {margin} m"
+        header = ["policy", "sign", *(f"{key} = {'none' if v is None else f'{v:g}'}" for v in values)]
+        table_rows = [[policy, sign, *(row.get(v, "–") for v in values)] for (policy, sign), row in rows.items()]
+        default = defaults[key]
+        lines += [f"`{key}` (default {'none' if default is None else f'{default:g}'}): stopped before the sign with its "
+                  f"Wilson 95 % interval, and the bumper's mean margin to the sign at rest [m].", "",
+                  *_table(header, table_rows)]
+    return lines or ["(No policy or perception constant varies across these cells.)", ""]
+
+
+def _tunable_values(config: SimConfig) -> dict[str, Any]:
+    """The policy and perception constants of a config, by dotted key."""
+    data = config.to_dict()
+    return {f"{section}.{key}": value for section in ("policy", "perception") for key, value in data[section].items()
+            if not isinstance(value, (list, tuple, dict))}
+
+
 _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[str]]] = {
     "cells": lambda cells, experiment, by_name: [],
     "table3": lambda cells, experiment, by_name: _table3(cells, experiment.name),
@@ -275,6 +312,7 @@ _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[s
     "fig3": lambda cells, experiment, by_name: _fig3(cells, experiment),
     "adaptive": lambda cells, experiment, by_name: adaptive_answer(cells, experiment),
     "compare": lambda cells, experiment, by_name: compare_section(cells, experiment, by_name.get(experiment.compare_with)),
+    "sensitivity": sensitivity_section,
 }
 
 

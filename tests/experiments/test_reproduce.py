@@ -182,3 +182,24 @@ def test_failed_runs_are_counted_beside_the_outcomes_of_the_others(tmp_path):
     assert cells.stopped("table3_stop_positions", cell) == "1/1 (1 failed)"
     text = "\n".join(findings(cells, [experiment]))
     assert "the failed runs below have no outcome" in text and f"{cell} (1 of 2)" in text
+
+
+def test_a_sensitivity_report_tabulates_each_varied_constant_with_the_others_at_their_defaults(tmp_path):
+    from avsim.experiments.report import Cells, sensitivity_section
+    from avsim.experiments.spec import load_experiment
+
+    cells_toml = "".join(f'[[cells]]\nname = "{name}"\npolicy = {{ name = "baseline", {setting} }}\n'
+                         for name, setting in (("gate 30", "trigger_dist_m = 30"), ("gate 40", "trigger_dist_m = 40"),
+                                               ("no gate", "trigger_dist_m = inf"), ("conf 0.7", "conf_threshold = 0.7")))
+    (tmp_path / "s.toml").write_text('report = "sensitivity"\nseeds = 2\n' + cells_toml)
+    experiment = load_experiment(tmp_path / "s.toml")
+    outcomes = {"gate 30": ("ran_past_sign", "ran_past_sign"), "gate 40": ("stopped_before_line",) * 2,
+                "no gate": ("stopped_before_line",) * 2, "conf 0.7": ("stopped_before_line", "ran_past_sign")}
+    records = [{"experiment": "s", "cell": name, "seed": k, "status": "ok", "trace": {},
+                "result": {"outcome": outcome, "sign_margin_m": 1.0 if outcome == "stopped_before_line" else -3.0}}
+               for name, pair in outcomes.items() for k, outcome in enumerate(pair)]
+    text = "\n".join(sensitivity_section(Cells(records), experiment, {}))
+    assert "| policy | sign | policy.trigger_dist_m = 30 | policy.trigger_dist_m = 40 | policy.trigger_dist_m = none |" in text
+    assert "| baseline | clean | 0/2 (0.00–0.66), -3.0 ± 0.0 m | 2/2 (0.34–1.00), 1.0 ± 0.0 m | 2/2 (0.34–1.00), 1.0 ± 0.0 m |" in text
+    # The threshold table holds the gate at its default (40 m): the gate-30 and no-gate cells stay out of it.
+    assert "| baseline | clean | 2/2 (0.34–1.00), 1.0 ± 0.0 m | 1/2 (0.09–0.91), -1.0 ± 2.8 m |" in text

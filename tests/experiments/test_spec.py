@@ -28,14 +28,21 @@ SHIPPED = {
                                ("adaptive", "combined"), ("yang", "side_camera")],
     "wet_road.toml": [("clean", "baseline"), ("yang", "baseline"), ("clean", "adjusted"), ("yang", "adjusted"),
                       ("clean", "side_camera"), ("yang", "side_camera"), ("clean", "autopilot")],
+    "sensitivity.toml": [(sign, policy) for policy in ("baseline", "adjusted") for sign in ("clean", "yang") for _ in range(6)],
 }
 # file name -> the report section it declares
 REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
                "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
-               "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare"}
+               "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare", "sensitivity.toml": "sensitivity"}
 
 
 # ---- the shipped files ------------------------------------------------------------------
+
+def test_the_sensitivity_file_varies_the_gate_and_the_threshold_one_at_a_time():
+    experiment = load_experiment(EXPERIMENTS_DIR / "sensitivity.toml")
+    pairs = {(c.config.policy.trigger_dist_m, c.config.policy.conf_threshold) for c in experiment.cells}
+    assert pairs == {(30.0, 0.5), (40.0, 0.5), (60.0, 0.5), (None, 0.5), (40.0, 0.3), (40.0, 0.7)}
+
 
 def test_every_shipped_file_is_tested():
     assert sorted(p.name for p in EXPERIMENTS_DIR.glob("*.toml")) == sorted(SHIPPED)

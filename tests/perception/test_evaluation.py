@@ -77,17 +77,3 @@ def test_report_writes_markdown_and_plot(tiny_split, tmp_path):
     report = evaluate(_replay([[], [], [], []]), tiny_split, conf_threshold=0.5, progress=False)
     report_path, plot_path = write_report(report, tmp_path / "eval", "test")
     assert "| stop_sign |" in report_path.read_text() and plot_path.stat().st_size > 1000
-
-
-def test_wilson_interval_matches_the_closed_form_and_stays_in_zero_one():
-    from avsim.perception.evaluation import wilson_interval
-
-    # 19 of 20: centre (0.95 + 1.96^2/40) / (1 + 1.96^2/20), the textbook 0.764-0.991
-    lo, hi = wilson_interval(19, 20)
-    assert lo == pytest.approx(0.7639, abs=1e-3) and hi == pytest.approx(0.9911, abs=1e-3)
-    lo, hi = wilson_interval(20, 20)
-    assert hi == 1.0 and 0.83 < lo < 0.84
-    assert wilson_interval(0, 10)[0] == 0.0
-    assert all(np.isnan(wilson_interval(0, 0)))
-    # more samples, narrower interval around the same proportion
-    assert np.diff(wilson_interval(950, 1000)) < np.diff(wilson_interval(19, 20))

@@ -33,7 +33,7 @@ import numpy as np
 from avsim.config import COCO_INPUTS, PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.perception.ap import match_detections
-from avsim.perception.evaluation import wilson_interval
+from avsim.stats import wilson_interval
 
 BIN_EDGES_M = tuple(range(5, 65, 5))  # 5-10, ..., 55-60 m
 POOLED_RANGE_M = (10, 45)
