@@ -55,9 +55,11 @@ def _detector_ms_per_frame(config: SimConfig, frames: int, threads: int,
     """Median and 90th-percentile detector time [ms] on rendered front-camera frames
     (pre-processing, network and NMS; rendering excluded) with `threads` torch threads,
     on the whole frame or on a region of interest (`region_px`)."""
-    from avsim.perception.detector.perception import DetectorPerception
+    from avsim.perception.detector.infer import SignDetectorRunner
+    from avsim.perception.detector.weights import resolve_weights_path
 
-    detector = DetectorPerception(config.perception.weights_path, config.perception.min_confidence, threads=threads).runner
+    detector = SignDetectorRunner(resolve_weights_path(config.perception.weights_path),
+                                  conf_threshold=config.perception.min_confidence, num_threads=threads)
     return _ms_per_frame(detector, _approach_frames(config), frames, region_px)
 
 

@@ -196,7 +196,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     if args.format == "onnx":
         from avsim.perception.detector.export_onnx import export_onnx
-        from avsim.perception.detector.perception import resolve_weights_path
+        from avsim.perception.detector.weights import resolve_weights_path
 
         out = check_output_file(args.out or "models/sign_detector.onnx", "--out")  # the default is checked too
         path = export_onnx(resolve_weights_path(args.checkpoint or ""), out)
@@ -211,7 +211,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from avsim.perception.detector.perception import resolve_weights_path
+    from avsim.perception.detector.weights import resolve_weights_path
     from avsim.perception.detector.infer import SignDetectorRunner
     from avsim.perception.evaluation import evaluate, write_report
 

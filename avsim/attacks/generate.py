@@ -30,7 +30,7 @@ from avsim.attacks.sign_view import face_alpha
 from avsim.errors import ConfigError
 from avsim.attacks.view_bank import ViewBankSpec, build_view_bank
 from avsim.metrics import write_json_atomic
-from avsim.perception.detector.perception import resolve_weights_path
+from avsim.perception.detector.weights import resolve_weights_path
 from avsim.perception.detector.weights import load_weights
 from avsim.world.signs import SIGN_SHAPES
 from avsim.world.textures import TEXTURE_DIR, load_texture_png, save_texture_png

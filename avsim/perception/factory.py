@@ -23,19 +23,6 @@ PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
 PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
 
 
-def _detector(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
-    # Imported here so oracle-only runs never import the network code.
-    from avsim.perception.detector.perception import DetectorPerception
-    from avsim.sensors.noise import SensorNoise
-
-    return DetectorPerception(config.weights_path, config.min_confidence, config.min_box_height_px, config.threads,
-                              SensorNoise(config.sensor_noise_std, seed),
-                              {"front": config.front_roi_px, "side": config.side_roi_px})
-
-
-PERCEPTIONS.add("detector", _detector)
-
-
 # Perceptions that run on pixels alone, as frame detectors: config -> an object with
 # detect(image_rgb, camera, region_px=...) -> list[Detection]. `avsim detect` runs these on
 # image files; the closed loop wraps them in a FramePerception (render, noise, range).
@@ -44,8 +31,9 @@ FRAME_DETECTORS: Registry[FrameDetectorFactory] = Registry("pixel perception")
 
 
 def _detector_frames(config: PerceptionConfig) -> "FrameDetector":
+    # Imported here so oracle-only runs never import the network code.
     from avsim.perception.detector.infer import SignDetectorRunner
-    from avsim.perception.detector.perception import resolve_weights_path
+    from avsim.perception.detector.weights import resolve_weights_path
 
     return SignDetectorRunner(resolve_weights_path(config.weights_path), conf_threshold=config.min_confidence,
                               num_threads=config.threads)
@@ -90,6 +78,7 @@ def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: Sc
                            {"front": config.front_roi_px, "side": config.side_roi_px})
 
 
+PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
 PERCEPTIONS.add("onnx", _frame_perception)
 

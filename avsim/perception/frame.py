@@ -3,8 +3,8 @@
 `FramePerception` does what every pixel-based perception needs around its network: render
 the frame, add the run's seeded sensor noise, run the detector on the camera's region of
 interest, drop boxes shorter than the range limit. The detector is anything with
-`detect(image_rgb, camera, region_px) -> list[Detection]` (the COCO CenterNet, an ONNX
-model). With one torch thread and two cameras, the cameras' networks run at once on two
+`detect(image_rgb, camera, region_px) -> list[Detection]` (avsim's own sign detector, the COCO
+CenterNet, an ONNX model). With one torch thread and two cameras, the cameras' networks run at once on two
 threads (each still single-threaded, so the result is the same, bit for bit, as one camera
 after the other); the frames render, and draw their noise, in camera order first.
 """
@@ -32,8 +32,7 @@ class FrameDetector(Protocol):
 class FramePerception(Perception):
     """Renders each camera's RGB frame and reports what `detector` finds in it.
 
-    min_box_height_px: boxes shorter than this are dropped, as the oracle and the
-    `detector` perception drop them (`PerceptionConfig.min_box_height_px`).
+    min_box_height_px: boxes shorter than this are dropped (`PerceptionConfig.min_box_height_px`).
     regions_px: camera -> region of interest (x0, y0, x1, y1) [px]; a camera without one
     is searched whole. threads: the torch thread count (a process-wide setting).
     """

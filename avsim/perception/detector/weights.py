@@ -24,9 +24,16 @@ from avsim.errors import AvsimError
 from avsim.outputs import temporary_path
 from avsim.perception.detector.model import SignDetector, build_detector
 
+# The shipped weights, trained by `avsim detector train` on `avsim detector make-data` renders.
+SHIPPED_WEIGHTS = Path(__file__).resolve().parents[3] / "models" / "sign_detector.pt"
 FORMAT = "avsim-sign-detector"
 VERSION = 1
 TRAIN_HINT = "`avsim detector train` (python -m avsim.perception.detector.train --data DIR --out PATH)"
+
+
+def resolve_weights_path(weights_path: str) -> Path:
+    """The configured weights file; an empty string means the shipped weights."""
+    return Path(weights_path) if weights_path else SHIPPED_WEIGHTS
 
 
 class WeightsError(AvsimError):

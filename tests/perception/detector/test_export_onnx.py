@@ -8,7 +8,7 @@ from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.infer import SignDetectorRunner
-from avsim.perception.detector.perception import SHIPPED_WEIGHTS
+from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 from avsim.perception.onnx.runner import OnnxRunner
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import TOWNS

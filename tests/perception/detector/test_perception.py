@@ -8,7 +8,7 @@ from avsim import cli
 from avsim.config import PerceptionConfig, SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.perception.base import Perception
-from avsim.perception.detector.perception import SHIPPED_WEIGHTS
+from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 from avsim.perception.factory import build_perception
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import PLACEMENTS, TOWNS

@@ -10,7 +10,7 @@ from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.letterbox import letterbox
-from avsim.perception.detector.perception import SHIPPED_WEIGHTS
+from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 from avsim.perception.detector.postprocess import decode
 from avsim.perception.detector.roi import ALIGN_PX, CONTEXT_PX, clip_region, crop_for
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
