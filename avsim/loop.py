@@ -8,6 +8,10 @@ where N = control_dt_s / physics_dt_s (25 at the defaults). Rendering happens in
 perception, only for the cameras the policy uses and only in the modality the
 perception needs. Commands are held constant over the N physics steps (zero-order
 hold), as a real ECU's would be between sensor frames.
+
+`step` is `perceive` (render -> perceive), the policy's decision, then `actuate` (actuate ->
+physics -> record). A controller outside the loop, such as the Gymnasium environment
+(`avsim.gym`), calls the two halves itself with its own decision in between.
 """
 
 from __future__ import annotations

@@ -64,7 +64,8 @@ def test_readme_has_a_tested_python_example_of_under_15_lines():
     assert all(len(code.splitlines()) < 15 for code, _ in examples)
 
 
-@pytest.mark.parametrize("code,documented", _tested_python_examples(), ids=lambda text: text.splitlines()[0][:40])
+@pytest.mark.parametrize("code,documented", _tested_python_examples(),
+                         ids=[f"python example {i + 1}" for i in range(len(_tested_python_examples()))])
 def test_readme_python_examples_run_and_print_what_is_documented(code, documented, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     exec(compile(code, str(README), "exec"), {"__name__": "__readme_example__"})
