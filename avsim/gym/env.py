@@ -68,9 +68,9 @@ def env_config(*, town: str | None = None, placement: str | None = None, sign: s
     """The `SimConfig` an environment runs: `config_overrides` (nested, as in an experiment file or
     `--set`), then the named arguments, which may not be given twice.
 
-    speed_kmh sets scenario.speed_kmh and, unless config_overrides sets it, scenario.start_speed_kmh:
-    the agent holds the throttle, so the car starts at the speed it approaches at. Without it the
-    start speed is scenario.speed_kmh (85 km/h) all the same. perception None is the `none` perception.
+    The car starts at scenario.speed_kmh (85 km/h, or speed_kmh), unless config_overrides sets
+    scenario.start_speed_kmh: the agent, not the cruise control, holds the throttle, so an episode
+    starts at the speed the car approaches at. perception None is the `none` perception.
     """
     if not isinstance(config_overrides, Mapping | None):
         raise ConfigError(f"config_overrides must be a mapping of config sections, e.g. {{'scenario': {{'fog_end_m': 120}}}}, "
