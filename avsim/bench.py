@@ -11,6 +11,7 @@ import time
 import mujoco
 
 from avsim.config import COCO_INPUTS, SimConfig, with_overrides
+from avsim.gym.bench import print_env_rows
 from avsim.loop import ClosedLoop, run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
 
@@ -130,6 +131,8 @@ def run_benchmarks(quick: bool = False) -> None:
     no_abs = with_overrides(base, {"vehicle": {"abs_enabled": False, "traction_control_enabled": False}})
     _closed_loop_rows(no_abs, "oracle", ("town07",), "the same run without anti-lock brakes or traction control",
                       (("one camera, no ABS or TCS", "baseline"),))
+    # The Gymnasium environment against the closed loop it drives (avsim/gym/bench.py).
+    print_env_rows(base, ("oracle",) if quick else ("oracle", "detector"), repeats=1 if quick else 3)
     # The runs use perception.threads (1 by default: bit-identical everywhere, and a pool of
     # single-threaded workers fills the cores); 2 threads is what one run alone could use.
     roi = base.perception.front_roi_px

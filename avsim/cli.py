@@ -181,9 +181,9 @@ def _cmd_make_data(args: argparse.Namespace) -> int:
     from avsim.perception.datagen import DataGenConfig, make_dataset
 
     config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
-                           seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m)
+                           seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format)
     out = make_dataset(args.out, config, overwrite=args.overwrite)
-    print(f"wrote {config.n_train} training and {config.n_val} validation images to {out}")
+    print(f"wrote {config.n_train} training and {config.n_val} validation images to {out} ({config.label_format} labels)")
     return 0
 
 
@@ -268,6 +268,9 @@ def _add_detector_commands(sub) -> None:
     data.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     data.add_argument("--max-dist-m", type=float, default=80.0,
                       help="farthest target sign [m] (default 80; 160 to measure the perception's range)")
+    data.add_argument("--format", choices=("jsonl", "coco", "yolo"), default="jsonl",
+                      help="labels: jsonl (default, read by detector train/eval), coco (annotations/instances_SPLIT.json) "
+                           "or yolo (labels/SPLIT/*.txt and data.yaml, for ultralytics)")
     data.add_argument("--overwrite", action="store_true", help="replace an existing dataset directory")
     data.set_defaults(func=_cmd_make_data)
 

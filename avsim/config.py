@@ -213,7 +213,8 @@ class PerceptionConfig:
     `detector` runs the trained sign detector on each rendered RGB frame; `oracle`
     reads ground-truth boxes from segmentation (an explicitly named shortcut); `coco` runs
     the COCO-trained CenterNet of @vladmandic/human (ported to PyTorch, fetched at install);
-    `onnx` runs a user's YOLOv8/YOLO11-layout ONNX detector with onnxruntime.
+    `onnx` runs a user's YOLOv8/YOLO11-layout ONNX detector with onnxruntime; `none` sees
+    nothing (for the autopilot, or a Gymnasium agent without a perception).
     """
 
     kind: str = "detector"

@@ -8,6 +8,10 @@ where N = control_dt_s / physics_dt_s (25 at the defaults). Rendering happens in
 perception, only for the cameras the policy uses and only in the modality the
 perception needs. Commands are held constant over the N physics steps (zero-order
 hold), as a real ECU's would be between sensor frames.
+
+`step` is `perceive` (render -> perceive), the policy's decision, then `actuate` (actuate ->
+physics -> record). A controller outside the loop, such as the Gymnasium environment
+(`avsim.gym`), calls the two halves itself with its own decision in between.
 """
 
 from __future__ import annotations
@@ -92,12 +96,23 @@ class ClosedLoop:
         """
         speed = self.vehicle.speed_mps()
         # render -> perceive
-        detections = self.perception.detect_cameras(self.rig, self.data, self.policy.cameras)
+        detections = self.perceive(self.policy.cameras)
         # decide
         obs = Observation(self.time_s, speed, detections)
         decision = self.policy.decide(obs)
-        # actuate
-        controls = self._controls(decision, speed)
+        return self.actuate(self._controls(decision, speed), decision, detections)
+
+    def perceive(self, cameras: tuple[str, ...]) -> dict[str, list[Detection]]:
+        """render -> perceive at the current state: each of `cameras`' detections, highest confidence first."""
+        return self.perception.detect_cameras(self.rig, self.data, cameras)
+
+    def actuate(self, controls: Controls, decision: BrakeDecision, detections: dict[str, list[Detection]]) -> StepRecord:
+        """The rest of a control step once its commands are known: actuate -> N physics steps -> record.
+
+        `step` calls it with the policy's commands. A controller outside the loop (the Gymnasium
+        environment, `avsim.gym`) calls `perceive`, decides, then calls this with its own
+        commands; `decision` and `detections` are only recorded. Returns (and stores) the record.
+        """
         self.vehicle.apply(controls)
         record = self._record(controls, decision, detections)  # state at sensing time
         # N physics steps (tyres, anti-lock brakes and traction control act at each)
@@ -109,12 +124,15 @@ class ClosedLoop:
         self.records.append(record)
         return record
 
+    def lane_steer_rad(self, speed_mps: float) -> float:
+        """The lane keeper's steering command at the current state [rad], left +."""
+        xy = self.vehicle.position_xy_m()
+        return self.lane.steer_rad(float(xy[1]), self.vehicle.yaw_rad(), speed_mps)
+
     def _controls(self, decision: BrakeDecision, speed_mps: float) -> Controls:
         self.braking = self.braking or decision.brake > 0
         throttle = 0.0 if self.braking else self.cruise.throttle(speed_mps, self.config.loop.control_dt_s)
-        xy = self.vehicle.position_xy_m()
-        steer = self.lane.steer_rad(float(xy[1]), self.vehicle.yaw_rad(), speed_mps)
-        return Controls(throttle=throttle, brake=decision.brake, steer_rad=steer)
+        return Controls(throttle=throttle, brake=decision.brake, steer_rad=self.lane_steer_rad(speed_mps))
 
     def _check_physics(self) -> None:
         # MuJoCo resets the state by itself when it meets NaN or huge values, so a finite
@@ -157,9 +175,14 @@ class ClosedLoop:
             record = self.step()
             if on_step is not None:
                 on_step(self, record)
+        return self.result(self.stopped)
+
+    def result(self, stopped: bool) -> RunResult:
+        """The result record of the steps so far, the run having ended at the current state;
+        stopped: whether it ended because the car stopped (`done` sets `self.stopped`)."""
         final = self._record(Controls(brake=self.records[-1].brake), BrakeDecision(self.records[-1].brake), {})
         sign = self.scene.stop_sign.base_pos_m
-        return summarise(self.records, final, (sign[0], sign[1]), self.stopped, self.config.to_dict())
+        return summarise(self.records, final, (sign[0], sign[1]), stopped, self.config.to_dict())
 
     def close(self) -> None:
         self.perception.close()

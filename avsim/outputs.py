@@ -236,13 +236,29 @@ def write_image(path: str | os.PathLike, image_bgr: Any, params: Sequence[int] =
         raise OutputError(f"cannot write {path}: OpenCV could not encode a '{path.suffix}' image")
     if atomic:
         write_bytes_atomic(path, encoded.tobytes())
-        return path
+    else:
+        _write_bytes_in_place(path, encoded.tobytes())
+    return path
+
+
+def write_text(path: str | os.PathLike, text: str, *, atomic: bool = True) -> Path:
+    """Write `text` (UTF-8) to `path`: through a temporary file renamed over it (`write_bytes_atomic`),
+    or, with atomic False, in place, for files inside a folder that is itself renamed into place
+    when complete. A failed write is an OutputError naming the file."""
+    path = Path(path)
+    if atomic:
+        write_bytes_atomic(path, text.encode())
+    else:
+        _write_bytes_in_place(path, text.encode())
+    return path
+
+
+def _write_bytes_in_place(path: Path, data: bytes) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(encoded.tobytes())
+        path.write_bytes(data)
     except OSError as exc:
         raise OutputError(f"cannot write {path} ({exc.strerror or exc})") from None
-    return path
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:

@@ -59,3 +59,13 @@ class Perception(ABC):
 
     def close(self) -> None:
         """Release what the perception holds (threads, contexts); the default holds nothing."""
+
+
+class NoPerception(Perception):
+    """`none`: sees nothing, renders nothing. For whatever decides without a perception: the
+    autopilot (it reads the map) or a Gymnasium agent built with `perception=None` (`avsim.gym`)."""
+
+    name = "none"
+
+    def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
+        return []

@@ -13,6 +13,8 @@ Output, in DIR (written to DIR.partial and renamed when complete):
   images/{train,val}/NNNNNN.png   640x480 RGB
   {train,val}.jsonl               {"image", "boxes": [[x0, y0, x1, y1]], "classes", "meta"}
   generation.json                 the generation settings
+With `label_format` "coco" or "yolo", the labels are written in that format instead of the
+JSON lines (`avsim.perception.dataset_formats`).
 """
 
 from __future__ import annotations
@@ -29,9 +31,10 @@ import cv2
 import mujoco
 import numpy as np
 
-from avsim.config import SimConfig, check_seed, with_overrides
+from avsim.config import CameraConfig, SimConfig, check_seed, with_overrides
 from avsim.errors import ConfigError
-from avsim.outputs import write_image
+from avsim.outputs import write_image, write_text
+from avsim.perception.dataset_formats import FORMATS, SPLITS, write_labels
 from avsim.sensors.camera import CameraRig
 from avsim.vehicle.physics import Vehicle
 from avsim.workers import init_worker, terminate_workers
@@ -44,6 +47,8 @@ VAL_SUN_ELEVATION_DEG = (40.0, 55.0)
 TARGET_KINDS = ("stop_sign", "yield", "speed_limit")
 TARGET_KIND_WEIGHTS = (0.55, 0.2, 0.25)
 MIN_LABEL_HEIGHT_PX = 4.0
+# Every image is rendered at the default camera's resolution (`_scene_config` changes only the scenario).
+IMAGE_SIZE_PX = (CameraConfig().width_px, CameraConfig().height_px)
 
 
 @dataclass(frozen=True)
@@ -56,8 +61,12 @@ class DataGenConfig:
     # Farthest target sign [m]. 80 m covers the braking range; the perception-range
     # measurement (README) renders out to 160 m, where the sign is 4 px tall.
     max_dist_m: float = 80.0
+    # How the labels are written: "jsonl" (avsim's own), "coco" or "yolo" (dataset_formats).
+    label_format: str = "jsonl"
 
     def __post_init__(self) -> None:
+        if self.label_format not in FORMATS:
+            raise ConfigError(f"--format must be one of {', '.join(FORMATS)}, got {self.label_format!r}")
         if self.n_train < 0 or self.n_val < 0 or self.n_train + self.n_val == 0:
             raise ConfigError(f"need a positive number of images, got train={self.n_train}, val={self.n_val}")
         if not 1 <= self.images_per_scene <= 1000:
@@ -198,9 +207,13 @@ def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0) -> list[
                 "image": rel,
                 "boxes": [[round(float(v), 3) for v in box] for _, box in labels],
                 "classes": [kind for kind, _ in labels],
-                "meta": {"town": config.scenario.town, "layout_seed": config.scenario.layout_seed, "camera": camera,
+                "meta": {"town": config.scenario.town, "placement": config.scenario.placement,
+                         "layout_seed": config.scenario.layout_seed, "camera": camera,
                          "target_kind": target_kind, "dist_m": round(dist_m, 3),
                          "sun_elevation_deg": round(config.scenario.sun_elevation_deg, 2),
+                         "sun_azimuth_deg": round(config.scenario.sun_azimuth_deg, 2),
+                         "sun_intensity": round(config.scenario.sun_intensity, 3),
+                         "fog_start_m": round(config.scenario.fog_start_m, 1),
                          "fog_end_m": round(config.scenario.fog_end_m, 1)},
             })
     finally:
@@ -232,7 +245,7 @@ def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: b
         raise ConfigError(f"{out} already exists; choose another --out or pass --overwrite")
     partial = out.with_name(out.name + ".partial")
     shutil.rmtree(partial, ignore_errors=True)
-    for split in ("train", "val"):
+    for split in SPLITS:
         (partial / "images" / split).mkdir(parents=True)
     jobs = _jobs(config)
     results: dict[int, list[dict]] = {}
@@ -260,14 +273,10 @@ def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: b
                 pool.shutdown()
             elif pool is not None:
                 terminate_workers(pool)
-    for split in ("train", "val"):
-        with open(partial / f"{split}.jsonl", "w") as handle:
-            for i, job in enumerate(jobs):
-                if job.split == split:
-                    for record in results[i]:
-                        handle.write(json.dumps(record) + "\n")
-    (partial / "generation.json").write_text(json.dumps({**asdict(config), "val_layout_seed": VAL_LAYOUT_SEED,
-                                                         "val_sun_elevation_deg": VAL_SUN_ELEVATION_DEG}, indent=2))
+    records = {split: [record for i, job in enumerate(jobs) if job.split == split for record in results[i]] for split in SPLITS}
+    write_labels(partial, config.label_format, records, IMAGE_SIZE_PX, out)
+    write_text(partial / "generation.json", json.dumps({**asdict(config), "val_layout_seed": VAL_LAYOUT_SEED,
+                                                        "val_sun_elevation_deg": VAL_SUN_ELEVATION_DEG}, indent=2), atomic=False)
     if out.exists():
         shutil.rmtree(out)
     os.replace(partial, out)

@@ -9,7 +9,7 @@ import mujoco
 
 from avsim.config import PerceptionConfig
 from avsim.errors import ConfigError
-from avsim.perception.base import Perception
+from avsim.perception.base import NoPerception, Perception
 from avsim.perception.oracle import OraclePerception
 from avsim.registry import Registry
 from avsim.world.scene import SceneInfo
@@ -21,6 +21,7 @@ if TYPE_CHECKING:
 PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int], Perception]
 PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
 PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
+PERCEPTIONS.add("none", lambda cfg, model, scene, seed: NoPerception())
 
 
 # Perceptions that run on pixels alone, as frame detectors: config -> an object with

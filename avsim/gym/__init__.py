@@ -1,0 +1,18 @@
+"""avsim as a Gymnasium environment: `avsim/StopSign-v0` (`avsim.gym.env.StopSignEnv`).
+
+Importing this package registers the environment, so after `import avsim.gym`,
+`gymnasium.make("avsim/StopSign-v0", ...)` makes it. Without the import,
+`gymnasium.make("avsim.gym:avsim/StopSign-v0", ...)` imports the package itself (Gymnasium 1.x
+has no plugin entry points: an id is registered by importing the module that registers it).
+"""
+
+from gymnasium.envs.registration import register, registry
+
+from avsim.gym.env import StopSignEnv
+
+ENV_ID = "avsim/StopSign-v0"
+
+if ENV_ID not in registry:  # importing twice (e.g. after importlib.reload) must not warn
+    register(id=ENV_ID, entry_point="avsim.gym.env:StopSignEnv")
+
+__all__ = ["ENV_ID", "StopSignEnv"]
