@@ -25,6 +25,7 @@ from avsim.control.pinhole import pinhole_distance_m
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
 from avsim.perception.detector.data import split_path
+from avsim.stats import wilson_interval
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60), (60, 80), (80, 100), (100, 120), (120, 140),
                (140, 160))
@@ -69,20 +70,6 @@ class EvalReport:
             if r0 >= 0.5 > r1:
                 return d0 + (d1 - d0) * (r0 - 0.5) / (r0 - r1)
         return None
-
-
-def wilson_interval(hits: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval (Wilson, JASA 1927) of a proportion hits / n; (nan, nan) for n = 0.
-
-    Unlike the normal approximation it stays inside [0, 1] and is sensible at 0 or n hits,
-    which is where a recall near 1 lives.
-    """
-    if n == 0:
-        return float("nan"), float("nan")
-    p = hits / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
 
 
 def _bin_name(lo: float, hi: float) -> str:
