@@ -22,6 +22,7 @@ from avsim.config import VehicleConfig, with_overrides
 from avsim.experiments import study
 from avsim.experiments.spec import Experiment
 from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
+from avsim.stats import wilson_interval
 from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
@@ -267,6 +268,41 @@ def compare_section(cells: Cells, experiment: Experiment, other: Experiment | No
                      f"{b}: stopped", "bumper before sign", "braking began", "full brake"], rows)]
 
 
+def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
+    """Per town and placement (rows) and policy (columns): runs stopped before the sign, with the
+    Wilson 95% interval of the rate, and the bumper's mean distance before the sign at rest;
+    then each policy over all its cells."""
+    stem = experiment.name
+    places = list(dict.fromkeys((c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells))
+    policies = list(dict.fromkeys(c.config.policy.name for c in experiment.cells))
+    by_place = {(c.config.scenario.town, c.config.scenario.placement, c.config.policy.name): c.name for c in experiment.cells}
+    pooled: dict[str, list[dict[str, Any]]] = defaultdict(list)
+
+    def rate(results: list[dict[str, Any]]) -> str:
+        stopped = sum(r["outcome"] in STOPPED_BEFORE_SIGN for r in results)
+        lo, hi = wilson_interval(stopped, len(results))
+        return f"{stopped}/{len(results)} ({lo:.2f}–{hi:.2f})" if results else "–"
+
+    rows = []
+    for town, placement in places:
+        row = [f"{town} {placement}"]
+        for policy in policies:
+            name = by_place.get((town, placement, policy))
+            if name is None:  # no such cell
+                row.append("–")
+                continue
+            results = cells.of(stem, name)
+            pooled[policy] += results
+            failed = cells.failed.get((stem, name), 0)
+            row.append(f"{rate(results)}; {fmt([r['sign_margin_m'] for r in results])} m"
+                       + (f"; {failed} failed" if failed else ""))
+        rows.append(row)
+    rows.append(["all cells"] + [f"{rate(pooled[p])}; {fmt([r['sign_margin_m'] for r in pooled[p]])} m" for p in policies])
+    return ["Runs stopped before the sign (95% Wilson interval of the rate); the front bumper's distance before the "
+            "sign at rest, mean ± std over the runs [m] (negative: past it).", "",
+            *_table(["town, placement", *policies], rows)]
+
+
 _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[str]]] = {
     "cells": lambda cells, experiment, by_name: [],
     "table3": lambda cells, experiment, by_name: _table3(cells, experiment.name),
@@ -275,6 +311,7 @@ _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[s
     "fig3": lambda cells, experiment, by_name: _fig3(cells, experiment),
     "adaptive": lambda cells, experiment, by_name: adaptive_answer(cells, experiment),
     "compare": lambda cells, experiment, by_name: compare_section(cells, experiment, by_name.get(experiment.compare_with)),
+    "stop_rates": lambda cells, experiment, by_name: stop_rates(cells, experiment),
 }
 
 
