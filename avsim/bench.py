@@ -10,7 +10,7 @@ import time
 
 import mujoco
 
-from avsim.config import COCO_INPUTS, SimConfig, with_overrides
+from avsim.config import COCO_INPUTS, COCO_PRECISIONS, SimConfig, with_overrides
 from avsim.gym.bench import print_env_rows
 from avsim.loop import ClosedLoop, run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
@@ -77,13 +77,14 @@ def _approach_frames(config: SimConfig, count: int = 16) -> list:
     return images
 
 
-def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str) -> tuple[float, float]:
+def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str, precision: str) -> tuple[float, float]:
     """Median and 90th-percentile COCO CenterNet time [ms] per front-camera frame at perception.threads,
-    as deployed: input preparation by `mode`, network, the graph's decoding, mapping and NMS
+    as deployed: input preparation by `mode`, the network at `precision`, decoding, mapping and NMS
     (rendering excluded)."""
     from avsim.perception.factory import build_frame_detector
 
-    detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode}))
+    detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode,
+                                                                        "coco_precision": precision}))
     return _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
 
 
@@ -150,10 +151,13 @@ def run_benchmarks(quick: bool = False) -> None:
                       "detector", ("town07",), "the same run without anti-lock brakes or traction control",
                       (("one camera, 2 threads, no ABS/TCS", "baseline"),))
     # The COCO CenterNet (--perception coco), at perception.threads (1) on the front region of interest.
-    for mode in (base.perception.coco_input, *(m for m in COCO_INPUTS if m != base.perception.coco_input)):
-        median_ms, p90_ms = _coco_ms_per_frame(base, 20 if quick else 100, mode)
-        default = " (default)" if mode == base.perception.coco_input else ""
-        print(f"  coco, coco_input={mode:8s}{default:10s} {base.perception.threads} thread  {median_ms:6.1f} ms median"
+    mode, precision = base.perception.coco_input, base.perception.coco_precision
+    settings = [(mode, p) for p in (precision, *(p for p in COCO_PRECISIONS if p != precision))]
+    settings += [(m, precision) for m in COCO_INPUTS if m != mode]
+    for coco_input, coco_precision in settings:
+        median_ms, p90_ms = _coco_ms_per_frame(base, 20 if quick else 100, coco_input, coco_precision)
+        default = " (default)" if (coco_input, coco_precision) == (mode, precision) else ""
+        print(f"  coco, {coco_input} {coco_precision}{default:10s} {base.perception.threads} thread  {median_ms:6.1f} ms median"
               f"    (90th percentile {p90_ms:.1f} ms; target <= 15)")
     _closed_loop_rows(base, "coco", ("town07",) if quick else ("town07", "town10"), target)
 

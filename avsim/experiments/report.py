@@ -304,6 +304,39 @@ def _tunable_values(config: SimConfig) -> dict[str, Any]:
             if not isinstance(value, (list, tuple, dict))}
 
 
+def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
+    """Per town and placement (rows) and policy (columns): runs stopped before the sign, with the
+    Wilson 95% interval of the rate, and the bumper's mean distance before the sign at rest;
+    then each policy over all its cells."""
+    stem = experiment.name
+    places = list(dict.fromkeys((c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells))
+    policies = list(dict.fromkeys(c.config.policy.name for c in experiment.cells))
+    by_place = {(c.config.scenario.town, c.config.scenario.placement, c.config.policy.name): c.name for c in experiment.cells}
+    pooled: dict[str, list[dict[str, Any]]] = defaultdict(list)
+
+    def rate(results: list[dict[str, Any]]) -> str:
+        return rate_with_interval(sum(r["outcome"] in STOPPED_BEFORE_SIGN for r in results), len(results))
+
+    rows = []
+    for town, placement in places:
+        row = [f"{town} {placement}"]
+        for policy in policies:
+            name = by_place.get((town, placement, policy))
+            if name is None:  # no such cell
+                row.append("–")
+                continue
+            results = cells.of(stem, name)
+            pooled[policy] += results
+            failed = cells.failed.get((stem, name), 0)
+            row.append(f"{rate(results)}; {fmt([r['sign_margin_m'] for r in results])} m"
+                       + (f"; {failed} failed" if failed else ""))
+        rows.append(row)
+    rows.append(["all cells"] + [f"{rate(pooled[p])}; {fmt([r['sign_margin_m'] for r in pooled[p]])} m" for p in policies])
+    return ["Runs stopped before the sign (95% Wilson interval of the rate); the front bumper's distance before the "
+            "sign at rest, mean ± std over the runs [m] (negative: past it).", "",
+            *_table(["town, placement", *policies], rows)]
+
+
 _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[str]]] = {
     "cells": lambda cells, experiment, by_name: [],
     "table3": lambda cells, experiment, by_name: _table3(cells, experiment.name),
@@ -313,6 +346,7 @@ _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[s
     "adaptive": lambda cells, experiment, by_name: adaptive_answer(cells, experiment),
     "compare": lambda cells, experiment, by_name: compare_section(cells, experiment, by_name.get(experiment.compare_with)),
     "sensitivity": sensitivity_section,
+    "stop_rates": lambda cells, experiment, by_name: stop_rates(cells, experiment),
 }
 
 

@@ -33,7 +33,7 @@ from avsim.metrics import write_json_atomic
 EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
 # The study's tables and figure, then what avsim adds beyond the study; report order.
 STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_attacked_defended",
-                     "fig3_detection", "adaptive_attacker", "wet_road", "sensitivity")
+                     "fig3_detection", "adaptive_attacker", "wet_road", "sensitivity", "coco_detector")
 
 
 def default_workers() -> int:

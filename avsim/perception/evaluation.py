@@ -26,6 +26,7 @@ from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
 from avsim.stats import wilson_interval
 from avsim.perception.detector.data import split_path
+from avsim.stats import wilson_interval
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60), (60, 80), (80, 100), (100, 120), (120, 140),
                (140, 160))

@@ -44,11 +44,15 @@ def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
     # Imported here so runs without it never import the port (nor need its fetched weights).
     import torch
 
+    from avsim.perception.coco.bf16 import Bf16CenterNet
     from avsim.perception.coco.model import load_centernet
     from avsim.perception.coco.runner import CocoRunner
 
     torch.set_num_threads(config.threads)
-    return CocoRunner(load_centernet(), config.coco_input, config.coco_upscale, config.min_confidence)
+    model = load_centernet()
+    if config.coco_precision == "bf16":
+        model = Bf16CenterNet(model)
+    return CocoRunner(model, config.coco_input, config.coco_upscale, config.min_confidence)
 
 
 def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":

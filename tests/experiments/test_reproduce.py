@@ -203,3 +203,38 @@ def test_a_sensitivity_report_tabulates_each_varied_constant_with_the_others_at_
     assert "| baseline | clean | 0/2 (0.00–0.66), -3.0 ± 0.0 m | 2/2 (0.34–1.00), 1.0 ± 0.0 m | 2/2 (0.34–1.00), 1.0 ± 0.0 m |" in text
     # The threshold table holds the gate at its default (40 m): the gate-30 and no-gate cells stay out of it.
     assert "| baseline | clean | 2/2 (0.34–1.00), 1.0 ± 0.0 m | 1/2 (0.09–0.91), -1.0 ± 2.8 m |" in text
+
+
+def test_a_stop_rates_report_gives_each_policy_and_place_its_rate_interval_and_margin(tmp_path):
+    from avsim.experiments.report import Cells, stop_rates
+    from avsim.experiments.spec import load_experiment
+
+    path = tmp_path / "rates.toml"
+    path.write_text("""
+report = "stop_rates"
+[defaults]
+perception = { kind = "oracle" }
+[[cells]]
+name = "a, baseline"
+scenario = { town = "town07", placement = "near" }
+[[cells]]
+name = "a, adjusted"
+scenario = { town = "town07", placement = "near" }
+policy = { name = "adjusted" }
+[[cells]]
+name = "b, baseline"
+scenario = { town = "town10", placement = "far" }
+""")
+    experiment = load_experiment(path)
+    outcomes = {"a, baseline": [("stopped_before_line", 3.0), ("ran_past_sign", -1.0)],
+                "a, adjusted": [("stopped_past_line", 0.5)], "b, baseline": [("never_braked", -40.0)]}
+    records = [{"experiment": "rates", "cell": cell, "seed": k, "status": "ok", "trace": {},
+                "result": {"outcome": outcome, "sign_margin_m": margin}}
+               for cell, runs in outcomes.items() for k, (outcome, margin) in enumerate(runs)]
+    records.append({"experiment": "rates", "cell": "b, baseline", "seed": 1, "status": "failed", "result": None,
+                    "trace": None, "error": "RenderError: x"})
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")[1:]]
+            for line in stop_rates(Cells(records), experiment) if line.startswith("| ") and "placement" not in line}
+    assert rows["town07 near"] == ["1/2 (0.09–0.91); 1.0 ± 2.8 m", "1/1 (0.21–1.00); 0.5 m"]
+    assert rows["town10 far"] == ["0/1 (0.00–0.79); -40.0 m; 1 failed", "–"]
+    assert rows["all cells"] == ["1/3 (0.06–0.79); -12.7 ± 23.8 m", "1/1 (0.21–1.00); 0.5 m"]

@@ -18,6 +18,7 @@ Scores are differentiable in the heatmap; the indices are not (they are a select
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -78,24 +79,27 @@ def peak_scores(heatmap: torch.Tensor) -> torch.Tensor:
     return heatmap * (heatmap == pooled).to(heatmap.dtype)
 
 
-def _peaks_at_or_above(heatmap: torch.Tensor, min_score: float) -> tuple[torch.Tensor, torch.Tensor]:
-    """(scores, flat NHWC indices), in index order, of the 3x3 peaks of a (1, C, H, W) heatmap
-    that score at least `min_score`: `peak_scores` evaluated only where it can pass.
+def _peaks_at_or_above(heatmap: torch.Tensor, min_value: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """(values, flat NHWC indices), in index order, of the 3x3 peaks of a (1, C, H, W) map
+    whose value is at least `min_value`: `peak_scores` evaluated only where it can pass.
 
-    Each candidate is compared with its 3x3 neighbourhood (outside the map counts as -inf,
-    as in the max pool), so the test is the graph's, cell for cell.
+    Each candidate is compared with its 3x3 neighbourhood, as in the max pool: the test is
+    the graph's, cell for cell. Outside the map counts as -inf there; here a neighbour
+    outside is clamped back onto the edge row or column, which is inside the same window,
+    so the maximum is the same. Candidates are found per cell first (the largest class
+    value of a cell), so only the few cells that can pass are searched by class.
     """
     _, num_classes, height, width = heatmap.shape
-    nhwc = heatmap[0].permute(1, 2, 0)  # a view; contiguous for channels-last maps
-    index = torch.nonzero((nhwc >= min_score).reshape(-1)).squeeze(1)
-    values = nhwc.reshape(-1)[index]
-    cls = index % num_classes
-    cell = torch.div(index, num_classes, rounding_mode="floor")
+    by_cell = heatmap[0].permute(1, 2, 0).reshape(height * width, num_classes)  # a view for channels-last maps
+    cells = torch.nonzero(by_cell.amax(dim=1) >= min_value).squeeze(1)
+    hits = torch.nonzero(by_cell[cells] >= min_value)  # (n, 2): row in `cells`, class; in index order
+    cell, cls = cells[hits[:, 0]], hits[:, 1]
+    values = by_cell[cell, cls]
     rows, cols = torch.div(cell, width, rounding_mode="floor"), cell % width
-    padded = F.pad(nhwc.permute(2, 0, 1).unsqueeze(0), (1, 1, 1, 1), value=float("-inf"))[0]
-    neighbourhood = torch.stack([padded[cls, rows + dy, cols + dx] for dy in range(3) for dx in range(3)])
+    neighbourhood = torch.stack([by_cell[(rows + dy).clamp(0, height - 1) * width + (cols + dx).clamp(0, width - 1), cls]
+                                 for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
     is_peak = values == neighbourhood.max(dim=0).values
-    return values[is_peak], index[is_peak]
+    return values[is_peak], (cell * num_classes + cls)[is_peak]
 
 
 def decode_detections(heatmap: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec = DecodeSpec(),
@@ -107,7 +111,7 @@ def decode_detections(heatmap: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec 
     without a max pool and top-k over the whole map: exactly the graph's rows, filtered. For
     inference, where the low peaks are dropped anyway; the default path is the graph's.
     """
-    batch, num_classes, height, width = heatmap.shape
+    batch, num_classes, _, _ = heatmap.shape
     if num_classes != spec.num_classes:
         raise ValueError(f"heatmap has {num_classes} classes, the graph decodes {spec.num_classes}")
     if min_score is not None:
@@ -121,8 +125,41 @@ def decode_detections(heatmap: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec 
         # (row, col, class) order, as the graph's NHWC reshape flattens it.
         flat = peak_scores(heatmap).permute(0, 2, 3, 1).reshape(batch, -1)
         scores, index = topk_lowest_index_first(flat, min(spec.k, flat.shape[1]))
-    classes = index % num_classes
-    cell = torch.div(index, num_classes, rounding_mode="floor")
+    return _rows(scores, index, wh, spec)
+
+
+# Candidates are taken this far below the threshold's logit, far above float32's rounding of
+# the sigmoid, so no cell whose score passes is missed; the score itself then decides.
+_LOGIT_MARGIN = 1e-3
+
+
+def decode_logit_detections(logits: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec, min_score: float) -> torch.Tensor:
+    """`decode_detections` with min_score, from the heatmap's logits (before the sigmoid).
+
+    logits (1, C, H, W) and wh (1, 4, H, W), any float dtype -> (1, n, 6) float32. The peaks
+    are those of the logits: the sigmoid is increasing, so they are the heatmap's, without
+    a sigmoid over the whole map. Each peak's score is sigmoid(logit) in float32. For the
+    bfloat16 network (`coco.bf16`); the float32 path keeps the graph's own order of ops.
+    """
+    batch, num_classes, _, _ = logits.shape
+    if num_classes != spec.num_classes or batch != 1:
+        raise ValueError(f"logit decoding takes one image of {spec.num_classes} classes, got {tuple(logits.shape)}")
+    if not 0 < min_score < 1:
+        raise ValueError(f"min_score must be in (0, 1), got {min_score}")
+    # float32 holds every bf16 value exactly, and its reductions are the fast ones.
+    values, index = _peaks_at_or_above(logits.float(), math.log(min_score / (1 - min_score)) - _LOGIT_MARGIN)
+    scores = torch.sigmoid(values)
+    passed = scores >= min_score
+    scores, index = scores[passed], index[passed]
+    order = torch.sort(scores, descending=True, stable=True).indices[:spec.k]
+    return _rows(scores[order].unsqueeze(0), index[order].unsqueeze(0), wh.float(), spec)
+
+
+def _rows(scores: torch.Tensor, index: torch.Tensor, wh: torch.Tensor, spec: DecodeSpec) -> torch.Tensor:
+    """(B, k) scores and flat NHWC heatmap indices, wh (B, 4, H, W) -> (B, k, 6) detection rows."""
+    batch, _, height, width = wh.shape
+    classes = index % spec.num_classes
+    cell = torch.div(index, spec.num_classes, rounding_mode="floor")
     rows = torch.div(cell, width, rounding_mode="floor")
     cols = cell % width
     edges = wh.permute(0, 2, 3, 1).reshape(batch, height * width, 4)

@@ -139,6 +139,17 @@ class CenterNet(nn.Module):
     def from_files(cls, json_path: Path) -> "CenterNet":
         return cls.from_graph(read_graph(json_path)).eval()
 
+    def producer_index(self, name: str) -> int:
+        """Index in `nodes` of the module that computes the named value, looking through
+        Identity nodes (e.g. HEATMAP_NAME: the heatmap's conv, with its sigmoid folded in)."""
+        for step in self._steps:
+            if step.output == name:
+                module = self.nodes[step.index]
+                if isinstance(module, Unary) and module.op == "Identity":
+                    return self.producer_index(step.inputs[0])
+                return step.index
+        raise KeyError(f"no module of the network produces {name!r}")
+
     def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """images (B, 3, H, W) RGB 0-255 -> (heatmap (B, 80, H/4, W/4), wh (B, 4, H/4, W/4))."""
         height, width = images.shape[-2:]

@@ -51,7 +51,8 @@ def same_padding(size: int, kernel: int, stride: int, dilation: int = 1) -> tupl
 
 
 _ACTIVATIONS = {"Relu": F.relu, "Relu6": F.relu6, "Sigmoid": torch.sigmoid}
-# oneDNN post-op (name, scalars) of each activation, for the fused inference path.
+# The fused inference path's input dtypes, and the oneDNN post-op (name, scalars) of each activation.
+_ONEDNN_DTYPES = (torch.float32, torch.bfloat16)
 _ONEDNN_ACTIVATIONS = {None: ("none", []), "Relu": ("relu", []), "Relu6": ("hardtanh", [0.0, 6.0]),
                        "Sigmoid": ("sigmoid", []), "HardSwish": ("hardswish", [])}
 
@@ -81,7 +82,10 @@ class TfConv2d(nn.Module):
     Two paths compute the same function. With autograd recording (an attack optimising
     pixels), plain `F.conv2d` and elementwise ops. Without it (`torch.inference_mode()` or
     `no_grad`), one oneDNN convolution with the bias and activation as post-ops, which
-    saves a pass over the output per fused op; they agree to float32 rounding.
+    saves a pass over the output per fused op; they agree to float32 rounding. The oneDNN
+    path also runs a module cast to bfloat16 on bfloat16 input (`coco.bf16`): products
+    of bf16 values summed in float32, the post-ops applied before the result is rounded
+    to bf16.
     """
 
     def __init__(self, kernel_hwio: np.ndarray, strides_hw: tuple[int, int], padding: str, depthwise: bool,
@@ -128,14 +132,16 @@ class TfConv2d(nn.Module):
     def _weight_for(self, extra_hw: tuple[int, int]) -> torch.Tensor:
         if extra_hw == (0, 0):
             return self.weight
-        if extra_hw not in self._shifted or self._shifted[extra_hw].device != self.weight.device:
+        cached = self._shifted.get(extra_hw)
+        if cached is None or cached.device != self.weight.device or cached.dtype != self.weight.dtype:
             self._shifted[extra_hw] = _shift_for_padding(self.weight.detach(), extra_hw).contiguous(
                 memory_format=torch.channels_last)
         return self._shifted[extra_hw]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         padding, extra = self._padding(x.shape[-2], x.shape[-1])
-        if torch.is_grad_enabled() or self.activation == "Prelu" or x.dtype != torch.float32 or x.device.type != "cpu":
+        if (torch.is_grad_enabled() or self.activation == "Prelu" or x.dtype not in _ONEDNN_DTYPES
+                or x.device.type != "cpu"):
             weight = self.weight if extra == (0, 0) else _shift_for_padding(self.weight, extra)
             y = F.conv2d(x, weight, self.bias, self.strides_hw, padding, self.dilations_hw, self.groups)
             return self._activate(y)
@@ -215,6 +221,11 @@ class Mean(nn.Module):
         self.keep_dims = keep_dims
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if x.dtype == torch.bfloat16 and self.dims == (2, 3) and not torch.is_grad_enabled():
+            # The same float32 sum, divided and rounded once; torch's bf16 mean first copies
+            # the whole tensor to float32, which costs three times as much.
+            pooled = F.avg_pool2d(x, tuple(x.shape[-2:]))
+            return pooled if self.keep_dims else pooled.flatten(2).squeeze(-1)
         return x.mean(dim=self.dims, keepdim=self.keep_dims)
 
 
@@ -262,6 +273,32 @@ def resize_bilinear_tf(x: torch.Tensor, out_hw: tuple[int, int]) -> torch.Tensor
     bottom = rows_bottom.index_select(2, x0)
     bottom = bottom + (rows_bottom.index_select(2, x1) - bottom) * wx
     return (top + (bottom - top) * wy.reshape(-1, 1, 1)).permute(0, 3, 1, 2)
+
+
+def upscale_bilinear_tf(x: torch.Tensor, factor: int) -> torch.Tensor:
+    """`resize_bilinear_tf` of (B, C, H, W) to (factor * H, factor * W), bit for bit, for a
+    power-of-two factor; differentiable in x. Channels-last memory out.
+
+    Output column factor * i + r samples the input at i + r / factor: the same lerp as TF's,
+    p[i] + (p[min(i + 1, W - 1)] - p[i]) * (r / factor), with the weight exact in binary, done
+    for every column of a residue r at once instead of by gathering; then the same along y.
+    The sums are TF's own, in its order, so for finite inputs the result equals
+    `resize_bilinear_tf`'s exactly (`tests/perception/coco/test_coco_ops.py`).
+    """
+    if factor < 1 or factor & (factor - 1):
+        raise ValueError(f"upscale_bilinear_tf takes a power-of-two factor, got {factor}")
+    if factor == 1:
+        return x
+    pixels = x.permute(0, 2, 3, 1)  # (B, H, W, C)
+    for axis in (2, 1):  # along x first, as TF lerps the two source rows, then between them
+        following = torch.cat([pixels.narrow(axis, 1, pixels.shape[axis] - 1), pixels.narrow(axis, -1, 1)], dim=axis)
+        step = following - pixels
+        # r = 0 is the source pixel itself: TF's p + (p - p) * 0, exactly p.
+        shifted = [pixels] + [pixels + step * (r / factor) for r in range(1, factor)]
+        shape = list(pixels.shape)
+        shape[axis] *= factor
+        pixels = torch.stack(shifted, dim=axis + 1).reshape(shape)
+    return pixels.permute(0, 3, 1, 2)
 
 
 class ResizeBilinear(nn.Module):

@@ -25,7 +25,7 @@ import torch.nn.functional as F
 from avsim.config import COCO_INPUTS
 from avsim.perception.coco.model import GRAPH_INPUT_SIZE_PX
 from avsim.perception.coco.network import SIZE_MULTIPLE_PX
-from avsim.perception.coco.ops import resize_bilinear_tf, upsample_bilinear_tf
+from avsim.perception.coco.ops import resize_bilinear_tf, upsample_bilinear_tf, upscale_bilinear_tf
 
 Region = tuple[int, int, int, int]
 
@@ -93,7 +93,9 @@ def network_input(image: torch.Tensor, mode: str, region_px: Region | None = Non
         x = image[..., y0:y1, x0:x1]
         scale = upscale if mode == "upscale" else 1.0
         out_w, out_h = round((x1 - x0) * scale), round((y1 - y0) * scale)
-        if scale == int(scale) and scale > 1:  # the same samples, in one native kernel
+        if scale in (2, 4):  # TF's samples, bit for bit, in a few strided passes
+            x = upscale_bilinear_tf(x, int(scale))
+        elif scale == int(scale) and scale > 1:  # the same samples, in one native kernel
             x = upsample_bilinear_tf(x, (int(scale), int(scale)))
         elif (out_w, out_h) != (x1 - x0, y1 - y0):
             x = resize_bilinear_tf(x, (out_h, out_w))

@@ -13,6 +13,7 @@ import numpy as np
 import torch
 
 from avsim.perception.base import Detection, touches_border
+from avsim.perception.coco.bf16 import Bf16CenterNet
 from avsim.perception.coco.labels import AVSIM_CLASS_NAMES
 from avsim.perception.coco.model import CocoCenterNet
 from avsim.perception.coco.preprocess import COCO_INPUTS, Region, image_tensor, network_input
@@ -23,7 +24,7 @@ from avsim.perception.detector.postprocess import IOU_THRESHOLD, nms
 class CocoRunner:
     """`detect(image, camera, region_px)`: that frame's COCO objects, highest confidence first."""
 
-    def __init__(self, model: CocoCenterNet, input_mode: str, upscale: float, min_confidence: float,
+    def __init__(self, model: CocoCenterNet | Bf16CenterNet, input_mode: str, upscale: float, min_confidence: float,
                  iou_threshold: float = IOU_THRESHOLD) -> None:
         if input_mode not in COCO_INPUTS:
             raise ValueError(f"unknown COCO input mode {input_mode!r}; choose one of: {', '.join(COCO_INPUTS)}")

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from avsim.perception.coco import fetch
-from avsim.perception.coco.decode import DecodeSpec, decode_detections, topk_lowest_index_first
+from avsim.perception.coco.decode import DecodeSpec, decode_detections, decode_logit_detections, topk_lowest_index_first
 from avsim.perception.coco.graph import read_graph
 from avsim.perception.coco.model import load_centernet
 from avsim.perception.coco.network import dense_node_names
@@ -99,3 +99,17 @@ def test_thresholded_decoding_is_the_graphs_rows_filtered(min_score):
     full = decode_detections(heatmap, wh)[0]
     fast = decode_detections(heatmap.contiguous(memory_format=torch.channels_last), wh, min_score=min_score)[0]
     assert torch.equal(fast, full[full[:, 4] >= min_score])
+
+
+@pytest.mark.parametrize("min_score", [0.1, 0.5])
+def test_logit_decoding_is_the_sigmoid_heatmaps_decoding(min_score):
+    """Peaks of the logits are the heatmap's peaks (the sigmoid is increasing), so the rows are the same.
+    Logits on a 1/8 grid within +-4: distinct logits keep distinct float32 sigmoids, ties stay ties."""
+    rng = np.random.default_rng(5)
+    logits = torch.from_numpy((rng.integers(-32, 33, (1, 80, 12, 16)) / 8.0).astype(np.float32))
+    wh = torch.from_numpy(rng.uniform(0, 30, (1, 4, 12, 16)).astype(np.float32))
+    expected = decode_detections(torch.sigmoid(logits), wh, min_score=min_score)
+    assert len(expected[0]) > 10
+    assert torch.equal(decode_logit_detections(logits, wh, DecodeSpec(), min_score), expected)
+    assert torch.equal(decode_logit_detections(logits.bfloat16(), wh.bfloat16(), DecodeSpec(), min_score)[0, :, 4:],
+                       expected[0, :, 4:])  # every value of the grid is a bf16 value: the same peaks and scores

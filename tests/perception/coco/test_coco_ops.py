@@ -5,7 +5,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from avsim.perception.coco.ops import TfConv2d, resize_bilinear_tf, same_padding, upsample_bilinear_tf
+from avsim.perception.coco.ops import TfConv2d, resize_bilinear_tf, same_padding, upsample_bilinear_tf, upscale_bilinear_tf
 
 
 @pytest.mark.parametrize("size,kernel,stride,expected", [
@@ -92,3 +92,19 @@ def test_integer_upsampling_equals_the_general_resize():
     fast = upsample_bilinear_tf(x, (2, 2))
     assert fast.is_contiguous(memory_format=torch.channels_last)
     assert torch.allclose(fast, resize_bilinear_tf(x, (16, 24)), atol=1e-6)
+
+
+@pytest.mark.parametrize("factor", [2, 4])
+def test_power_of_two_upscaling_is_the_general_resize_bit_for_bit(factor):
+    x = torch.from_numpy(np.random.default_rng(2).uniform(-20, 300, (1, 3, 9, 14)).astype(np.float32))
+    fast = upscale_bilinear_tf(x, factor)
+    assert fast.is_contiguous(memory_format=torch.channels_last)
+    assert torch.equal(fast, resize_bilinear_tf(x, (9 * factor, 14 * factor)))
+
+
+def test_power_of_two_upscaling_of_pixels_equals_the_native_kernel():
+    """On 8-bit pixels every lerp by 1/2 is exact, so the deployed input is what it was with `upsample_bilinear_tf`."""
+    pixels = torch.from_numpy(np.random.default_rng(3).integers(0, 256, (1, 3, 40, 56)).astype(np.float32))
+    assert torch.equal(upscale_bilinear_tf(pixels, 2), upsample_bilinear_tf(pixels, (2, 2)))
+    with pytest.raises(ValueError, match="power-of-two"):
+        upscale_bilinear_tf(pixels, 3)
