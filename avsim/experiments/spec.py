@@ -49,8 +49,10 @@ TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary"
 # so a new experiment needs no code change in the report: "cells" (the default) is the table of
 # every cell's results; "table3", "table1", "table2" and "fig3" set the cells beside the study's
 # figures of that name; "adaptive" answers whether the side camera holds; "compare" sets each
-# cell beside the same-named cell of the experiment named by `compare_with` (a file stem).
-REPORT_KINDS = ("cells", "table3", "table1", "table2", "fig3", "adaptive", "compare")
+# cell beside the same-named cell of the experiment named by `compare_with` (a file stem);
+# "attack_success" gives each cell's closed-loop attack success rate, overrun and braking delay
+# against the clean cell of the same town, placement, policy and perception (`avsim.attacks.success`).
+REPORT_KINDS = ("cells", "table3", "table1", "table2", "fig3", "adaptive", "compare", "attack_success")
 DEFAULT_SEEDS = 5
 # Second word of the [vary] generator's seed, so its draws are independent of the start
 # jitter, which ClosedLoop draws from default_rng(scenario.seed).
