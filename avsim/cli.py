@@ -303,24 +303,49 @@ def _add_detector_commands(sub) -> None:
 
 
 def _cmd_attack_generate(args: argparse.Namespace) -> int:
-    from avsim.attacks.generate import generate
+    from avsim.attacks.generate import (check_hyperparameters, check_ssim_floor, default_bank, generate, generate_from,
+                                        prepare, read_recipe)
+    from avsim.attacks.targets import TARGET_NAMES
 
-    hyper = {k: v for k, v in (("steps", args.steps), ("views_per_step", args.views_per_step)) if v is not None}
-    hyper.update(_parse_set(args.set))
-    from avsim.attacks.generate import check_hyperparameters, prepare
-    from avsim.attacks.view_bank import ViewBankSpec
-
-    check_hyperparameters(args.method, args.seed, hyper)
-    # The spec checks the camera names, so a bad one fails before anything is rendered.
-    bank_spec = ViewBankSpec(cameras=tuple(c.strip() for c in args.cameras.split(",") if c.strip()))
-    _, record = generate(args.method, args.out, seed=args.seed, setup=prepare(args.weights, bank_spec),
-                         hyperparameters=hyper)
+    if args.from_json:
+        # Everything comes from the record; flags that would change the texture are refused.
+        given = [flag for flag, value in (("--method", args.method), ("--steps", args.steps),
+                                          ("--views-per-step", args.views_per_step), ("--set", args.set),
+                                          ("--detector", args.detector), ("--cameras", args.cameras),
+                                          ("--ssim-floor", args.ssim_floor), ("--seed", args.seed)) if value not in (None, [])]
+        if given:
+            raise ConfigError(f"--from regenerates a texture from its record alone; drop {', '.join(given)}")
+        read_recipe(args.from_json)  # a bad record fails before anything is rendered
+        _, record = generate_from(args.from_json, args.out, args.weights)
+    else:
+        if not args.method:
+            raise ConfigError("avsim attack generate needs --method NAME (or --from textures/NAME.json)")
+        hyper = {k: v for k, v in (("steps", args.steps), ("views_per_step", args.views_per_step)) if v is not None}
+        hyper.update(_parse_set(args.set))
+        seed = 0 if args.seed is None else args.seed
+        check_seed(seed, "--seed")
+        check_hyperparameters(args.method, seed, hyper)
+        detector = args.detector or "detector"
+        if detector not in TARGET_NAMES:
+            raise ConfigError(f"--detector must be one of {', '.join(TARGET_NAMES)}, got '{detector}'")
+        ssim_floor = args.ssim_floor  # None: the method's own floor, or 0.7
+        if ssim_floor is not None:
+            check_ssim_floor(ssim_floor)
+        if not 0 < args.speed_kmh <= 200:
+            raise ConfigError(f"--speed-kmh must be in (0, 200], got {args.speed_kmh}")
+        # The spec checks the camera names, so a bad one fails before anything is rendered.
+        cameras = tuple(c.strip() for c in (args.cameras or "front").split(",") if c.strip())
+        bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
+        _, record = generate(args.method, args.out, seed=seed, setup=prepare(args.weights, bank_spec, detector, photometric),
+                             hyperparameters=hyper, ssim_floor=ssim_floor, threads=args.threads)
     print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
           f"and {Path(args.out).with_suffix('.json')}")
     return 0
 
 
 def _cmd_attack_eval(args: argparse.Namespace) -> int:
+    from avsim.attacks.disappearance import drive_by_frames
+    from avsim.attacks.drive_by_report import plot_confidence_by_detector
     from avsim.attacks.evaluate import evaluate_texture, fig3_grid
     from avsim.attacks.report import write_attack_report
     from avsim.config import SimConfig
@@ -330,15 +355,24 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     signs = [s.strip() for s in args.signs.split(",") if s.strip()]
     for sign in signs:
         resolve_sign_texture(sign)  # fail on a bad name before rendering anything
+    detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
+    unknown = [d for d in detectors if d not in ("detector", "coco")]
+    if unknown or not detectors:
+        raise ConfigError(f"--detectors takes detector and/or coco, comma-separated; got '{args.detectors}'")
+    if args.drives < 0:
+        raise ConfigError(f"--drives must be >= 0, got {args.drives}")
     placements = tuple(p.strip() for p in args.placements.split(","))
     threshold = SimConfig().policy.conf_threshold
     out = Path(args.out)
-    reports = []
+    reports, drive_bys = [], {}
     for sign in signs:
         print(f"measuring {sign} ...", flush=True)
-        reports.append(evaluate_texture(sign, args.town, placements, threshold))
-    fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town)
-    path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3)
+        reports.append(evaluate_texture(sign, args.town, placements, threshold, detector=detectors[0]))
+        for detector in detectors if args.drives else ():
+            drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives)
+    fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, detector=detectors[0])
+    figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
+    path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure)
     print(path.read_text())
     print(f"wrote {path}")
     return 0
@@ -361,24 +395,44 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
 def _add_attack_commands(sub) -> None:
     attack = sub.add_parser("attack", help="optimise adversarial stop-sign textures and measure them in renders")
     asub = attack.add_subparsers(dest="attack_command", required=True)
-    gen = asub.add_parser("generate", help="optimise one texture against the shipped detector")
-    gen.add_argument("--method", required=True, help="chen, eykholt, lu_v2, lu_v3 or yang")
+    gen = asub.add_parser("generate", help="optimise one texture against a detector (or remake one with --from)")
+    gen.add_argument("--method", help="chen, eykholt, lu_v2, lu_v3, yang, driveby or range_inflation")
     add_output_argument(gen, "--out", kind=FILE, suffix=".png", companions=(".json",), required=True,
                         help="PNG to write (a JSON record is written beside it)")
-    gen.add_argument("--seed", type=int, default=0)
+    gen.add_argument("--from", dest="from_json", metavar="JSON",
+                     help="regenerate the texture a record describes (e.g. textures/driveby_detector.json): the same "
+                          "method, hyperparameters, seed, detector, view bank and budget")
+    gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
+                                        "default), coco (the COCO CenterNet port) or ensemble (both at once)")
+    gen.add_argument("--seed", type=int)
     gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
     gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
     gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
     gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
-    gen.add_argument("--cameras", default="front",
+    gen.add_argument("--cameras",
                      help="comma-separated cameras whose views the texture is optimised over: front, side "
                           "(default front; front,side is the adaptive attacker against the side-camera defence)")
+    gen.add_argument("--ssim-floor", type=float,
+                     help="camouflage budget: the saved PNG keeps at least this SSIM to the clean sign on its face "
+                          "(default: the method's ssim_floor hyperparameter if it has one, else 0.7); the change is "
+                          "scaled back until it does")
+    gen.add_argument("--speed-kmh", type=float, default=85.0,
+                     help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
+    gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",
+                     help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
     gen.set_defaults(func=_cmd_attack_generate)
     ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
     ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
     ev.add_argument("--town", default="town07")
-    ev.add_argument("--placements", default="near,standard,far")
+    ev.add_argument("--placements", default="near,standard,far",
+                    help="placements of the fixed-distance tables (under the first of --detectors)")
+    ev.add_argument("--detectors", default="detector",
+                    help="comma-separated perceptions the drive-bys are measured under: detector, coco (default detector)")
+    ev.add_argument("--drives", type=int, default=6,
+                    help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
+                         "0 skips them)")
+    ev.add_argument("--drive-placement", default="standard", help="placement of the drive-bys (default standard)")
     add_output_argument(ev, "--out", kind=FOLDER, default="results/attack_eval", help="report directory")
     ev.set_defaults(func=_cmd_attack_eval)
     sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 import torch
 
-from avsim.attacks.budget import linf, ssim
+from avsim.attacks.budget import linf, ssim, within_ssim
 from avsim.attacks.objective import StopEvidence
 
 
@@ -26,6 +26,10 @@ class Scene(Protocol):
 
     def evidence(self, texture: torch.Tensor, n_views: int, generator: torch.Generator,
                  sequence: bool = False) -> StopEvidence: ...
+
+    def evidence_of(self, texture: torch.Tensor, views: list[int], generator: torch.Generator) -> StopEvidence: ...
+
+    def sample_sequences(self, n_sequences: int, max_frames: int, generator: torch.Generator) -> list[list[int]]: ...
 
 
 @dataclass
@@ -39,11 +43,19 @@ class AttackResult:
     ssim: float
     linf: float
     loss_history: list[float] = field(default_factory=list)
+    # Figures the attack derived from its hyperparameters (e.g. yang's mean bound): recorded,
+    # but not hyperparameters, so a texture regenerates from its hyperparameters alone.
+    derived: dict[str, Any] = field(default_factory=dict)
+    # (1, H, W) 0/1: the only texels the attack may change, when its budget is an area
+    # (stickers); the full-size texture is then made with nearest-neighbour upsampling so
+    # that the area holds on the saved PNG (`generate.apply_change`). None: the whole face.
+    change_mask: torch.Tensor | None = None
+    max_changed_fraction: float | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         return {"method": self.method, "hyperparameters": self.hyperparameters, "seed": self.seed,
                 "ssim": self.ssim, "linf": self.linf, "final_loss": self.loss_history[-1] if self.loss_history else None,
-                "steps_run": len(self.loss_history)}
+                "steps_run": len(self.loss_history), **({"derived": self.derived} if self.derived else {})}
 
 
 class Attack(ABC):
@@ -62,6 +74,9 @@ class Attack(ABC):
         self.seed = seed
         self.hyperparameters = {"steps": steps, "views_per_step": views_per_step, "lr": lr, **hyperparameters}
         self.loss_history: list[float] = []
+        self.derived: dict[str, Any] = {}
+        self.change_mask: torch.Tensor | None = None
+        self.max_changed_fraction: float | None = None
         self.progress = False  # a progress bar over the steps (the CLI turns it on)
 
     def step_range(self):
@@ -86,7 +101,9 @@ class Attack(ABC):
             texture = self.forward(clean.detach().float(), generator).detach().clamp(0.0, 1.0)
         mask = self.scene.face_mask
         return AttackResult(texture=texture, method=self.name, hyperparameters=dict(self.hyperparameters), seed=self.seed,
-                            ssim=ssim(texture, clean, mask), linf=linf(texture, clean), loss_history=list(self.loss_history))
+                            ssim=ssim(texture, clean, mask), linf=linf(texture, clean), loss_history=list(self.loss_history),
+                            derived=dict(self.derived), change_mask=self.change_mask,
+                            max_changed_fraction=self.max_changed_fraction)
 
     def _log(self, loss: torch.Tensor) -> None:
         value = float(loss.detach())
@@ -115,4 +132,29 @@ def optimise_bounded(attack: Attack, clean: torch.Tensor, bound: torch.Tensor, g
         with torch.no_grad():
             delta.copy_(torch.maximum(torch.minimum(delta, bound), -bound))
             delta.copy_((clean + delta).clamp(0.0, 1.0) - clean)
+    return (clean + delta).detach()
+
+
+def optimise_within_ssim(attack: Attack, clean: torch.Tensor, eps: float, ssim_floor: float, generator: torch.Generator,
+                         loss_fn) -> torch.Tensor:
+    """Adam on a perturbation delta of the face, kept inside the camouflage budget after every
+    step: |delta| <= eps, clean + delta in [0, 1], and SSIM(clean + delta, clean) >= ssim_floor
+    on the face (`budget.within_ssim`: the change scaled back towards the clean sign).
+
+    loss_fn(texture, generator) -> scalar to minimise. Returns clean + delta.
+    """
+    mask = attack.scene.face_mask
+    delta = torch.zeros_like(clean, requires_grad=True)
+    optimizer = torch.optim.Adam([delta], lr=attack.lr)
+    bar = attack.step_range()
+    for _ in bar:
+        loss = loss_fn(clean + delta, generator)
+        attack._log(loss)
+        bar.set_postfix(loss=f"{attack.loss_history[-1]:.4f}", refresh=False)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        with torch.no_grad():
+            change = (clean + delta.clamp(-eps, eps) * mask).clamp(0.0, 1.0) - clean
+            delta.copy_(within_ssim(clean, change, mask, ssim_floor))
     return (clean + delta).detach()

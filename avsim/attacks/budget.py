@@ -59,3 +59,27 @@ def non_printability(texture: torch.Tensor, mask: torch.Tensor, palette: torch.T
         return texture.sum() * 0.0
     distances = torch.cdist(pixels, palette.to(texture))  # (P, colours)
     return distances.prod(dim=1).mean()
+
+
+def within_ssim(clean: torch.Tensor, change: torch.Tensor, mask: torch.Tensor, floor: float,
+                measure=None, iterations: int = 12) -> torch.Tensor:
+    """The change scaled towards zero, as little as needed for SSIM(clean + change, clean) >= floor.
+
+    clean, change: (3, H, W); mask: (1, H, W) the face SSIM is measured over. `measure(scaled
+    change) -> SSIM` defaults to `ssim(clean + change, clean, mask)`; pass another to measure what
+    will really be kept (e.g. the 8-bit PNG). The scale is found by bisection on [0, 1]
+    (`iterations` halvings, then the feasible end), so the result always meets the floor if the
+    unchanged texture does. Scaling a change towards the clean sign is the projection the
+    drive-by attacks apply after every step: it keeps the change's direction and shrinks its size.
+    """
+    measure = measure or (lambda c: ssim((clean + c).clamp(0, 1), clean, mask))
+    if measure(change) >= floor:
+        return change
+    low, high = 0.0, 1.0  # feasible, infeasible
+    for _ in range(iterations):
+        mid = (low + high) / 2
+        if measure(change * mid) >= floor:
+            low = mid
+        else:
+            high = mid
+    return change * low

@@ -24,6 +24,7 @@ from avsim.config import PerceptionConfig, SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.outputs import write_image
 from avsim.perception.ap import box_iou
+from avsim.perception.base import Detection
 from avsim.perception.factory import build_perception
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
@@ -53,6 +54,14 @@ class TextureReport:
         return float(np.nanmean(values))
 
 
+def sign_detection(found: list[Detection], truth: Detection) -> Detection | None:
+    """The most confident of `found` whose box overlaps the true sign's (IoU >= MATCH_IOU); None
+    if none does. A detection elsewhere (a tree scored as a stop sign) never stands for the sign."""
+    ious = box_iou(np.array([d.box_xyxy_px for d in found]).reshape(-1, 4), np.array([truth.box_xyxy_px]))[:, 0]
+    matched = [d for d, iou in zip(found, ious) if iou >= MATCH_IOU]
+    return max(matched, key=lambda d: d.confidence) if matched else None
+
+
 def _sign_confidence(loop: ClosedLoop, oracle, camera: str) -> tuple[float | None, float, float]:
     """(confidence of the best detection matching the stop sign, or 0; its box height [px];
     the true box height [px]). The confidence is None when the sign is not in the camera's view."""
@@ -61,11 +70,9 @@ def _sign_confidence(loop: ClosedLoop, oracle, camera: str) -> tuple[float | Non
         return None, 0.0, 0.0
     true_height_px = truth[0].height_px
     found = [d for d in loop.perception.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
-    ious = box_iou(np.array([d.box_xyxy_px for d in found]).reshape(-1, 4), np.array([truth[0].box_xyxy_px]))[:, 0]
-    matched = [d for d, iou in zip(found, ious) if iou >= MATCH_IOU]
-    if not matched:
+    best = sign_detection(found, truth[0])
+    if best is None:
         return 0.0, 0.0, true_height_px
-    best = max(matched, key=lambda d: d.confidence)
     return best.confidence, best.height_px, true_height_px
 
 
@@ -75,8 +82,9 @@ def _place(loop: ClosedLoop, bumper_to_sign_m: float) -> None:
 
 
 def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshold: float,
-                     base: SimConfig | None = None) -> TextureReport:
-    """Measure one texture (a `--sign` value) in `town` at each placement.
+                     base: SimConfig | None = None, detector: str = "detector") -> TextureReport:
+    """Measure one texture (a `--sign` value) in `town` at each placement, with the perception
+    `detector` (detector or coco).
 
     Confidences are the detector's at any box size; the detection rate and the first
     detection count a frame as the car's pipeline does: confidence >= `threshold` and a box
@@ -90,10 +98,10 @@ def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshol
             table[camera] = {}
     for placement in placements:
         config = with_overrides(base, {"scenario": {"town": town, "placement": placement, "sign": sign},
-                                       "perception": {"kind": "detector", "min_confidence": 0.05, "min_box_height_px": 1}})
+                                       "perception": {"kind": detector, "min_confidence": 0.05, "min_box_height_px": 1}})
         loop = ClosedLoop(config)
         try:
-            oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=4), loop.model, loop.scene)
+            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.model, loop.scene)
             fixed = {camera: {} for camera in CAMERAS}
             for dist_m in FIXED_DISTANCES_M:
                 _place(loop, dist_m)
@@ -122,23 +130,24 @@ def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshol
 
 
 def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement: str = "standard",
-              dist_m: float = 30.0, base: SimConfig | None = None) -> Path:
+              dist_m: float = 30.0, base: SimConfig | None = None, detector: str = "detector") -> Path:
     """A grid of the front camera's view of each texture at `dist_m`, cropped around the sign,
     with the detector's stop-sign box and score drawn (like the study's Fig. 3)."""
     tiles = []
     for sign in signs:
         config = with_overrides(base or SimConfig(), {"scenario": {"town": town, "placement": placement, "sign": sign},
-                                                      "perception": {"kind": "detector", "min_confidence": 0.05,
+                                                      "perception": {"kind": detector, "min_confidence": 0.05,
                                                                      "min_box_height_px": 1}})
         loop = ClosedLoop(config)
         try:
             _place(loop, dist_m)
             image = loop.rig.render_rgb(loop.data, "front")[..., ::-1].copy()
-            oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=4), loop.model, loop.scene)
+            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.model, loop.scene)
             truth = [d for d in oracle.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"][0]
             found = [d for d in loop.perception.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"]
         finally:
             loop.close()
+        best = sign_detection(found, truth)
         cx, cy = (truth.box_xyxy_px[0] + truth.box_xyxy_px[2]) / 2, (truth.box_xyxy_px[1] + truth.box_xyxy_px[3]) / 2
         half = 40
         x0 = int(np.clip(cx - half, 0, image.shape[1] - 2 * half))
@@ -147,8 +156,7 @@ def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement:
         tile = cv2.resize(crop, (320, 320), interpolation=cv2.INTER_NEAREST)
         scale = 320 / (2 * half)
         label = "no detection"
-        if found:
-            best = found[0]
+        if best is not None:
             bx0, by0, bx1, by1 = ((v - o) * scale for v, o in zip(best.box_xyxy_px, (x0, y0, x0, y0)))
             cv2.rectangle(tile, (int(bx0), int(by0)), (int(bx1), int(by1)), (0, 255, 0), 2)
             label = f"stop_sign {best.confidence:.2f}"

@@ -57,6 +57,8 @@ class Eykholt(Attack):
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
         mask = sticker_mask(self.scene.face_mask, self.n_stickers, self.max_area_fraction, generator)
+        # The area budget must hold on the saved full-size texture too (`generate.apply_change`).
+        self.change_mask, self.max_changed_fraction = mask, self.max_area_fraction
         # Stickers are solid material: optimise their colour freely, through a sigmoid to stay in [0, 1].
         logits = torch.logit(clean.clamp(0.02, 0.98)).clone().requires_grad_(True)
         optimizer = torch.optim.Adam([logits], lr=self.lr * 10)

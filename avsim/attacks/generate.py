@@ -1,16 +1,28 @@
-"""`avsim attack generate`: optimise one texture against the shipped detector and save it.
+"""`avsim attack generate`: optimise one texture against a target detector and save it.
 
 Attacks optimise a 128x128 copy of the clean texture (a stop sign is at most about 70 px
 tall in the views that matter, so finer texels would only alias); the change is then
-upsampled bilinearly onto the 512x512 clean texture. Bilinear weights are convex, so the
-L-infinity bound survives the upsampling. SSIM and L-infinity are measured on the saved
-texture, over the sign face.
+upsampled onto the 512x512 clean texture:
+- bilinearly for a change of the whole face (bilinear weights are convex, so an L-infinity
+  bound survives the upsampling);
+- by nearest neighbour inside the attack's change mask for an area budget (stickers), so
+  that no texel outside the mask changes, trimmed deterministically if the upsampled mask
+  still covers more of the face than the budget allows.
+The camouflage budget is then enforced on what is saved: if SSIM against the clean sign over
+the face, measured on the 8-bit PNG, is below `ssim_floor`, the change is scaled back towards
+the clean sign until it is not. SSIM and L-infinity in the record are the PNG's.
+
+Every texture is written with a JSON record holding what regenerates it
+(`avsim attack generate --from textures/NAME.json`): method, hyperparameters, seed, target
+detector, view bank, photometric ranges, budget floor and torch thread count, with the
+sha256 of every weight file used and the compute time.
 """
 
 from __future__ import annotations
 
-import hashlib
+import dataclasses
 import inspect
+import json
 import os
 import time
 from dataclasses import asdict, dataclass
@@ -23,12 +35,14 @@ import torch
 import torch.nn.functional as F
 
 from avsim.attacks.base import AttackResult
-from avsim.attacks.budget import linf, ssim
+from avsim.attacks.budget import SSIM_FLOOR, linf, ssim, within_ssim
 from avsim.attacks.eot import EotScene
+from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC, PhotometricRanges
 from avsim.attacks.registry import ATTACKS
 from avsim.attacks.sign_view import face_alpha
+from avsim.attacks.targets import TARGET_NAMES, build_target, sha256_file
+from avsim.attacks.view_bank import ViewBankSpec, build_view_bank, closed_loop_bank_spec
 from avsim.errors import ConfigError
-from avsim.attacks.view_bank import ViewBankSpec, build_view_bank
 from avsim.metrics import write_json_atomic
 from avsim.perception.detector.weights import resolve_weights_path
 from avsim.perception.detector.weights import load_weights
@@ -36,6 +50,9 @@ from avsim.world.signs import SIGN_SHAPES
 from avsim.world.textures import TEXTURE_DIR, load_texture_png, save_texture_png
 
 OPTIMISED_TEXTURE_PX = 128
+# Methods whose objective is a closed-loop drive-by: they get the closed loop's bank and sensor.
+CLOSED_LOOP_METHODS = ("driveby", "range_inflation")
+DEFAULT_THREADS = 2
 
 
 def texture_tensor(rgb: np.ndarray) -> torch.Tensor:
@@ -56,12 +73,51 @@ def downsample(rgb: np.ndarray, size_px: int = OPTIMISED_TEXTURE_PX) -> torch.Te
     return texture_tensor(cv2.resize(rgb, (size_px, size_px), interpolation=cv2.INTER_AREA))
 
 
-def apply_change(clean_full: torch.Tensor, clean_small: torch.Tensor, attacked_small: torch.Tensor) -> torch.Tensor:
-    """The attacked full-size texture: clean + bilinearly upsampled (attacked - clean), on the face only."""
-    change = F.interpolate((attacked_small - clean_small)[None], size=clean_full.shape[-2:], mode="bilinear",
-                           align_corners=False)[0]
-    face = (face_alpha(SIGN_SHAPES["stop_sign"], *clean_full.shape[-2:]) > 0.5).float()
-    return (clean_full + change * face).clamp(0, 1)
+def face_mask_full(height_px: int, width_px: int) -> torch.Tensor:
+    """(1, H, W) 0/1: the stop sign's face on a texture of this size."""
+    return (face_alpha(SIGN_SHAPES["stop_sign"], height_px, width_px) > 0.5).float()
+
+
+def trim_mask(mask: torch.Tensor, max_pixels: int) -> torch.Tensor:
+    """(1, H, W) 0/1 mask with at most `max_pixels` ones: the last ones in raster order removed."""
+    flat = mask.reshape(-1).clone()
+    on = torch.nonzero(flat > 0.5).squeeze(1)
+    if len(on) > max_pixels:
+        flat[on[max_pixels:]] = 0.0
+    return flat.reshape(mask.shape)
+
+
+def apply_change(clean_full: torch.Tensor, clean_small: torch.Tensor, attacked_small: torch.Tensor,
+                 change_mask: torch.Tensor | None = None, max_changed_fraction: float | None = None) -> torch.Tensor:
+    """The attacked full-size texture (3, H, W).
+
+    change_mask None: clean + bilinearly upsampled (attacked - clean), on the face only.
+    change_mask (1, h, w) 0/1 on the small texture: inside its nearest-neighbour upsampling (on
+    the face, at most `max_changed_fraction` of the face's texels) the attacked small texture,
+    upsampled by nearest neighbour; the clean texture elsewhere.
+    """
+    face = face_mask_full(*clean_full.shape[-2:])
+    if change_mask is None:
+        change = F.interpolate((attacked_small - clean_small)[None], size=clean_full.shape[-2:], mode="bilinear",
+                               align_corners=False)[0]
+        return (clean_full + change * face).clamp(0, 1)
+    mask = F.interpolate(change_mask[None].float(), size=clean_full.shape[-2:], mode="nearest")[0] * face
+    if max_changed_fraction is not None:
+        mask = trim_mask(mask, int(max_changed_fraction * float(face.sum())))
+    patch = F.interpolate(attacked_small[None], size=clean_full.shape[-2:], mode="nearest")[0]
+    return (clean_full * (1 - mask) + patch * mask).clamp(0, 1)
+
+
+def within_budget_on_disk(clean_full: torch.Tensor, attacked_full: torch.Tensor, ssim_floor: float) -> np.ndarray:
+    """The 8-bit texture to save: `attacked_full`, with its change scaled back towards the clean
+    sign as little as needed for the PNG's SSIM over the face to be at least `ssim_floor`."""
+    face = face_mask_full(*clean_full.shape[-2:])
+
+    def on_disk(change: torch.Tensor) -> float:
+        return ssim(texture_tensor(tensor_to_rgb(clean_full + change)), clean_full, face)
+
+    change = within_ssim(clean_full, attacked_full - clean_full, face, ssim_floor, measure=on_disk, iterations=14)
+    return tensor_to_rgb(clean_full + change)
 
 
 def load_detector(weights_path: str = ""):
@@ -71,24 +127,40 @@ def load_detector(weights_path: str = ""):
 
 @dataclass
 class AttackSetup:
-    """What every attack run needs, built once: the frozen detector, the clean texture at
-    full and optimised size, and the EOT scene over a rendered view bank."""
+    """What every attack run needs, built once: the frozen target detector, the clean texture
+    at full and optimised size, and the EOT scene over a rendered view bank."""
 
     scene: EotScene
     clean_full_rgb: np.ndarray
     clean_small: torch.Tensor
-    weights_path: Path
+    detector: str
+    weight_hashes: dict[str, str]
     bank_spec: ViewBankSpec
+    photometric: PhotometricRanges
+    seconds: float  # to load the target and render the bank, wall clock
+    cpu_seconds: float  # the same, CPU time of this process (the machine may be shared)
 
 
-def prepare(weights_path: str = "", bank_spec: ViewBankSpec = ViewBankSpec()) -> AttackSetup:
-    """Load the detector and render the view bank (about 40 s for the default front-camera
-    bank; each further camera adds about as much again)."""
-    detector, _ = load_detector(weights_path)
+def prepare(weights_path: str = "", bank_spec: ViewBankSpec = ViewBankSpec(), detector: str = "detector",
+            photometric: PhotometricRanges = PhotometricRanges()) -> AttackSetup:
+    """Load the target and render the view bank (about 40 s for the study textures' front-camera
+    bank; each further camera adds about as much again; the closed-loop drive-by bank is about
+    three times as many views)."""
+    started, started_cpu = time.perf_counter(), time.process_time()
+    target = build_target(detector, weights_path)
     clean_full_rgb = clean_stop_texture()
     clean_small = downsample(clean_full_rgb)
-    scene = EotScene(build_view_bank(bank_spec, clean_small), detector)
-    return AttackSetup(scene, clean_full_rgb, clean_small, resolve_weights_path(weights_path), bank_spec)
+    scene = EotScene(build_view_bank(bank_spec, clean_small), target, photometric)
+    return AttackSetup(scene, clean_full_rgb, clean_small, detector, target.weight_hashes(), bank_spec, photometric,
+                       time.perf_counter() - started, time.process_time() - started_cpu)
+
+
+def default_bank(method: str, cameras: tuple[str, ...], speed_kmh: float) -> tuple[ViewBankSpec, PhotometricRanges]:
+    """The view bank and photometric ranges a method is optimised over by default: the closed
+    loop's for the drive-by methods, the study textures' generic ones for the five families."""
+    if method in CLOSED_LOOP_METHODS:
+        return closed_loop_bank_spec(cameras, speed_kmh=speed_kmh), CLOSED_LOOP_PHOTOMETRIC
+    return ViewBankSpec(cameras=cameras), PhotometricRanges()
 
 
 def check_hyperparameters(method: str, seed: int, hyperparameters: dict[str, Any]) -> None:
@@ -100,16 +172,33 @@ def check_hyperparameters(method: str, seed: int, hyperparameters: dict[str, Any
         raise ConfigError(f"bad hyperparameters for attack '{method}' ({exc}); see avsim/attacks/{method}.py") from None
 
 
-def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: AttackSetup | None = None,
-             hyperparameters: dict[str, Any] | None = None, progress: bool = True) -> tuple[AttackResult, dict[str, Any]]:
-    """Run `method` and write OUT.png and OUT.json (hyperparameters, seed, SSIM, L-inf, timing).
+def check_ssim_floor(ssim_floor: float) -> None:
+    if not 0 < ssim_floor < 1:
+        raise ConfigError(f"--ssim-floor must be in (0, 1) (the camouflage budget is {SSIM_FLOOR}), got {ssim_floor}")
 
-    setup: a `prepare()`d detector and view bank, shared across runs; built here when None.
+
+def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: AttackSetup | None = None,
+             hyperparameters: dict[str, Any] | None = None, ssim_floor: float | None = None,
+             threads: int = DEFAULT_THREADS, progress: bool = True) -> tuple[AttackResult, dict[str, Any]]:
+    """Run `method` and write OUT.png and OUT.json (see the module docstring).
+
+    setup: a `prepare()`d target and view bank, shared across runs; built here (the method's
+    default bank, front camera, detector target) when None. ssim_floor: the budget on the PNG;
+    None takes the method's own `ssim_floor` hyperparameter if it has one, else 0.7. threads:
+    torch's intra-op threads, recorded, since the optimisation's sums (and so the texture's last
+    bits) depend on them.
     """
     hyperparameters = hyperparameters or {}
     check_hyperparameters(method, seed, hyperparameters)
-    started = time.perf_counter()
-    setup = setup or prepare()
+    if ssim_floor is None:
+        declared = inspect.signature(ATTACKS.get(method)).parameters.get("ssim_floor")
+        ssim_floor = hyperparameters.get("ssim_floor", declared.default if declared else SSIM_FLOOR)
+    check_ssim_floor(ssim_floor)
+    torch.set_num_threads(threads)
+    if setup is None:
+        bank_spec, photometric = default_bank(method, ("front",), 85.0)
+        setup = prepare(bank_spec=bank_spec, photometric=photometric)
+    started, started_cpu = time.perf_counter(), time.process_time()
     attack_class = ATTACKS.get(method)
     try:
         attack = attack_class(setup.scene, seed=seed, **hyperparameters)
@@ -117,27 +206,114 @@ def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: A
         raise ConfigError(f"bad hyperparameters for attack '{method}' ({exc}); see avsim/attacks/{method}.py") from None
     attack.progress = progress
     if progress:
-        print(f"{attack!r} over {len(setup.scene.bank)} views", flush=True)
+        print(f"{attack!r} against {setup.detector} over {len(setup.scene.bank)} views", flush=True)
     result = attack(setup.clean_small)
     clean_full = texture_tensor(setup.clean_full_rgb)
-    rgb = tensor_to_rgb(apply_change(clean_full, setup.clean_small, result.texture))
+    attacked_full = apply_change(clean_full, setup.clean_small, result.texture, result.change_mask,
+                                 result.max_changed_fraction)
+    rgb = within_budget_on_disk(clean_full, attacked_full, ssim_floor)
     saved = texture_tensor(rgb)  # measure what is on disk, after 8-bit rounding
     bank = setup.scene.bank
-    face = (face_alpha(SIGN_SHAPES["stop_sign"], *clean_full.shape[-2:]) > 0.5).float()
+    face = face_mask_full(*clean_full.shape[-2:])
+    changed = (saved - clean_full).abs().amax(dim=0) > 0
     record = {
         **result.to_json_dict(),
         "ssim": round(ssim(saved, clean_full, face), 4),
         "linf": round(linf(saved, clean_full), 4),
+        "changed_fraction": round(float(changed.sum() / face.sum()), 4),
         "optimised_ssim": round(result.ssim, 4),
+        "ssim_floor": ssim_floor,
         "paper": attack_class.paper,
-        "detector_weights": setup.weights_path.name,
-        "detector_weights_sha256": hashlib.sha256(setup.weights_path.read_bytes()).hexdigest(),
+        "detector": setup.detector,
+        "weights_sha256": setup.weight_hashes,
         # The spec carries the cameras; the counts show each camera's views really made the bank.
         "view_bank": {**asdict(setup.bank_spec), "views": len(bank),
                       "views_by_camera": {camera: bank.camera.count(camera) for camera in setup.bank_spec.cameras}},
-        "seconds": round(time.perf_counter() - started, 1),
+        "photometric": asdict(setup.photometric),
+        "torch_threads": threads,
+        "torch_version": torch.__version__,
+        # Compute time: the bank (rendered once per setup) and the optimisation, on this machine;
+        # wall clock, and this process's CPU time (the machine is shared: wall time depends on the others).
+        "bank_seconds": round(setup.seconds, 1),
+        "seconds": round(setup.seconds + time.perf_counter() - started, 1),
+        "cpu_seconds": round(setup.cpu_seconds + time.process_time() - started_cpu, 1),
     }
     out_png = Path(out_png)
     save_texture_png(out_png, rgb)
     write_json_atomic(out_png.with_suffix(".json"), record)
     return result, record
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """Everything a texture's JSON record says about how to make it again."""
+
+    method: str
+    seed: int
+    hyperparameters: dict[str, Any]
+    detector: str
+    bank_spec: ViewBankSpec
+    photometric: PhotometricRanges
+    ssim_floor: float
+    threads: int
+    weight_hashes: dict[str, str]
+
+
+def _dataclass_from(kind, values: dict[str, Any], where: str):
+    names = {f.name: f for f in dataclasses.fields(kind)}
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {', '.join(unknown)}")
+    return kind(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+
+
+def read_recipe(json_path: str | os.PathLike) -> Recipe:
+    """The recipe in a texture's JSON record; a one-line ConfigError if it is not one."""
+    path = Path(json_path)
+    try:
+        record = json.loads(path.read_text())
+        method, seed, hyper = record["method"], record["seed"], dict(record["hyperparameters"])
+        bank = {k: v for k, v in record["view_bank"].items() if k not in ("views", "views_by_camera")}
+        photometric = record.get("photometric", {})
+        detector = record.get("detector", "detector")
+    except FileNotFoundError:
+        raise ConfigError(f"--from {path}: no such file; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
+    except (json.JSONDecodeError, KeyError, TypeError, AttributeError) as exc:
+        raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` ({exc!r})") from None
+    if detector not in TARGET_NAMES:
+        raise ConfigError(f"--from {path}: unknown detector {detector!r}; choose one of: {', '.join(TARGET_NAMES)}")
+    check_hyperparameters(method, seed, hyper)
+    hashes = record.get("weights_sha256") or {record.get("detector_weights", "sign_detector.pt"): record.get("detector_weights_sha256")}
+    return Recipe(method, seed, hyper, detector, _dataclass_from(ViewBankSpec, bank, f"--from {path}: view_bank"),
+                  _dataclass_from(PhotometricRanges, photometric, f"--from {path}: photometric"),
+                  float(record.get("ssim_floor", SSIM_FLOOR)), int(record.get("torch_threads", DEFAULT_THREADS)), hashes)
+
+
+def check_weights(recipe: Recipe, weights_path: str = "") -> None:
+    """A one-line ConfigError when the weights here are not the ones the texture was made against."""
+    from avsim.perception.coco import fetch
+
+    expected = {name: digest for name, digest in recipe.weight_hashes.items() if digest}
+    actual = {}
+    if recipe.detector in ("detector", "ensemble"):
+        path = resolve_weights_path(weights_path)
+        actual[path.name] = sha256_file(path)
+    if recipe.detector in ("coco", "ensemble"):
+        json_path, bin_path = fetch.model_paths()
+        actual[json_path.name], actual[bin_path.name] = sha256_file(json_path), sha256_file(bin_path)
+    different = sorted(name for name, digest in expected.items() if actual.get(name, digest) != digest)
+    if different:
+        raise ConfigError(f"the weights differ from those the texture was made against ({', '.join(different)}): "
+                          "its record cannot regenerate it with these weights")
+
+
+def generate_from(json_path: str | os.PathLike, out_png: str | os.PathLike, weights_path: str = "",
+                  progress: bool = True) -> tuple[AttackResult, dict[str, Any]]:
+    """Make a texture again from its JSON record (`--from`), into OUT.png and OUT.json."""
+    recipe = read_recipe(json_path)
+    check_weights(recipe, weights_path)
+    check_ssim_floor(recipe.ssim_floor)
+    torch.set_num_threads(recipe.threads)
+    setup = prepare(weights_path, recipe.bank_spec, recipe.detector, recipe.photometric)
+    return generate(recipe.method, out_png, seed=recipe.seed, setup=setup, hyperparameters=recipe.hyperparameters,
+                    ssim_floor=recipe.ssim_floor, threads=recipe.threads, progress=progress)

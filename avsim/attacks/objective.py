@@ -1,10 +1,18 @@
-"""What the attacks minimise: the detector's stop-sign evidence around the sign.
+"""What the attacks minimise: a detector's stop-sign evidence around the sign, and how the car
+turns that evidence into a decision.
 
-The detector (see `avsim.perception.detector.model`) scores each cell as
-sigmoid(objectness) * sigmoid(stop-sign class logit). An attack wants every cell that
-could report the sign to score low, so the objectives take the maximum over the cells
-whose centres fall inside the sign's box, grown by a margin (a cell just outside the
-box still predicts it). Cells elsewhere in the frame are not the attack's business.
+Per view (`StopEvidence`), from the detector's dense maps before non-maximum suppression:
+- the stop-sign score of the cells that could report the sign: the maximum over the cells
+  whose centres fall inside the sign's box, grown by a margin (a cell just outside the box
+  still predicts it); cells elsewhere in the frame are not the attack's business;
+- the height of the box those cells would report: their predicted heights weighted by a
+  softmax of their scores, since NMS keeps the best-scored one.
+
+Over a drive-by (`driveby_objective`), the quantity that decides `baseline` is the *first*
+confident frame inside the braking gate, so the objective is a soft maximum over a whole
+approach sequence, not a mean. `gate_weight` is the braking gate itself, made smooth: a frame
+counts only once the policy's pinhole estimate, computed from the *predicted* box height, is
+inside the trigger distance, so a box read short (range inflation) keeps a frame out of it.
 """
 
 from __future__ import annotations
@@ -14,14 +22,20 @@ from dataclasses import dataclass
 import torch
 
 from avsim.perception.base import SIGN_CLASSES
-from avsim.perception.detector.boxes import flatten_outputs
+from avsim.perception.detector.boxes import MAX_LOG_SIZE, flatten_outputs
 
 STOP_CLASS_INDEX = SIGN_CLASSES.index("stop_sign")
+# Softmax temperature over cell scores for the reported box's height: 0.05 puts nearly all the
+# weight on the best cells, as NMS does, and still passes gradient to their neighbours.
+BOX_SCORE_TEMPERATURE = 0.05
 
 
 @dataclass(frozen=True)
 class StopEvidence:
-    """Per view (B,), the maximum over the sign's cells of each quantity, in [0, 1]."""
+    """Per view (B,), the maximum over the sign's cells of each quantity; scores in [0, 1].
+
+    box_height_px: height [camera image px] of the box the sign's cells would report.
+    """
 
     score: torch.Tensor  # objectness x stop-sign class probability: what NMS thresholds
     objectness: torch.Tensor
@@ -29,6 +43,7 @@ class StopEvidence:
     # The stop-sign class logit (unbounded): a clean sign saturates the sigmoid, whose
     # gradient then vanishes in float32, so a class-probability attack descends the logit.
     class_logit: torch.Tensor
+    box_height_px: torch.Tensor
 
 
 def cells_near_boxes(centres_px: torch.Tensor, boxes_xyxy_px: torch.Tensor, margin_px: float) -> torch.Tensor:
@@ -38,23 +53,64 @@ def cells_near_boxes(centres_px: torch.Tensor, boxes_xyxy_px: torch.Tensor, marg
     return (x >= x0 - margin_px) & (x <= x1 + margin_px) & (y >= y0 - margin_px) & (y <= y1 + margin_px)
 
 
+def masked_max(values: torch.Tensor, near: torch.Tensor, empty: float) -> torch.Tensor:
+    """(B, N) values, (B, N) mask -> (B,) the maximum over the masked cells (`empty` if none)."""
+    return torch.where(near, values, torch.full((), empty, dtype=values.dtype)).amax(dim=1)
+
+
+def reported_height_px(heights_px: torch.Tensor, scores: torch.Tensor, near: torch.Tensor) -> torch.Tensor:
+    """(B,) the near cells' box heights (B, N) weighted by softmax(score / BOX_SCORE_TEMPERATURE)."""
+    logits = torch.where(near, scores / BOX_SCORE_TEMPERATURE, torch.full((), -1e4, dtype=scores.dtype))
+    weights = torch.softmax(logits, dim=1) * near.any(dim=1, keepdim=True)
+    return (weights * heights_px).sum(dim=1)
+
+
 def stop_evidence(outputs: list[torch.Tensor], strides: tuple[int, ...], sign_boxes_xyxy_px: torch.Tensor,
                   margin_px: float = 8.0) -> StopEvidence:
-    """Stop-sign evidence near each view's sign.
+    """Stop-sign evidence of avsim's detector near each view's sign.
 
     outputs: the detector's raw per-stride maps, each (B, 1 + C + 4, H_s, W_s);
     sign_boxes_xyxy_px: (B, 4) the sign's box in input pixels.
     A view with no cell near its box gets zeros (and no gradient).
     """
-    preds, centres, _ = flatten_outputs(outputs, strides)  # (B, N, K)
+    preds, centres, cell_strides = flatten_outputs(outputs, strides)  # (B, N, K)
     near = cells_near_boxes(centres, sign_boxes_xyxy_px.to(preds.dtype), margin_px)
     objectness = torch.sigmoid(preds[..., 0])
     class_prob = torch.sigmoid(preds[..., 1 + STOP_CLASS_INDEX])
-    floor = torch.zeros((), dtype=preds.dtype)
+    score = objectness * class_prob
+    heights_px = torch.exp(preds[..., -1].clamp(max=MAX_LOG_SIZE)) * cell_strides  # boxes.decode_boxes' height
+    return StopEvidence(masked_max(score, near, 0.0), masked_max(objectness, near, 0.0), masked_max(class_prob, near, 0.0),
+                        masked_max(preds[..., 1 + STOP_CLASS_INDEX], near, -20.0), reported_height_px(heights_px, score, near))
 
-    def masked_max(values: torch.Tensor, empty: torch.Tensor = floor) -> torch.Tensor:
-        return torch.where(near, values, empty).amax(dim=1)
 
-    logit_floor = torch.full((), -20.0, dtype=preds.dtype)
-    return StopEvidence(masked_max(objectness * class_prob), masked_max(objectness), masked_max(class_prob),
-                        masked_max(preds[..., 1 + STOP_CLASS_INDEX], logit_floor))
+def soft_maximum(values: torch.Tensor, temperature: float) -> torch.Tensor:
+    """A smooth maximum of (N,) values: t (logsumexp(v / t) - log N).
+
+    It lies between the mean (t -> inf) and the maximum (t -> 0) of the values: by Jensen's
+    inequality it is never below the mean it replaces, and never above the maximum.
+    """
+    if temperature <= 0:
+        raise ValueError(f"soft maximum temperature must be > 0, got {temperature}")
+    # Computed as max + t log(1 + mean(exp((v - max) / t) - 1)) with expm1 and log1p, which keeps
+    # its digits when t is large and every term is near 1 (the plain form cancels there).
+    top = values.amax(dim=-1, keepdim=True)
+    return top.squeeze(-1) + temperature * torch.log1p(torch.expm1((values - top) / temperature).mean(dim=-1))
+
+
+def gate_weight(estimate_m: torch.Tensor, trigger_dist_m: float | None, softness_m: float) -> torch.Tensor:
+    """The braking gate, smooth: sigmoid((trigger - estimate) / softness), about 1 for a pinhole
+    estimate inside the trigger distance and 0 beyond it; 1 everywhere with no gate (None)."""
+    if trigger_dist_m is None:
+        return torch.ones_like(estimate_m)
+    return torch.sigmoid((trigger_dist_m - estimate_m) / softness_m)
+
+
+def driveby_objective(frame_values: list[torch.Tensor], temperature: float) -> torch.Tensor:
+    """Mean over sequences of the soft maximum over each sequence's frames (each (F_i,))."""
+    return torch.stack([soft_maximum(values, temperature) for values in frame_values]).mean()
+
+
+def log_height_ratio(box_height_px: torch.Tensor, true_height_px: torch.Tensor) -> torch.Tensor:
+    """log(predicted / true box height) per view: 0 for a true box, -0.22 for one 20 % short
+    (which the pinhole estimate reads 25 % too far)."""
+    return torch.log(box_height_px.clamp(min=0.5) / true_height_px)

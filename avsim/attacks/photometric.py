@@ -4,6 +4,13 @@ Applied to composited camera images (B, 3, H, W) in [0, 1] after the sign is war
 so the texture must survive what the camera pipeline does to it: exposure and contrast,
 fog, defocus or motion blur, sensor noise and JPEG re-encoding. Every draw comes from the
 `torch.Generator` passed in, so a seed fixes the whole sequence.
+
+Two sets of ranges: `PhotometricRanges()` (the study textures': a generic camera pipeline) and
+`CLOSED_LOOP_PHOTOMETRIC`, what the closed loop really does to a frame before the detector sees
+it: 8-bit quantisation and the seeded Gaussian read noise of `avsim.sensors.noise` (the
+experiment files' 2 levels, rounded to whole levels), with a small exposure jitter as a margin
+for the fitted lighting of each view. No blur, fog or JPEG: the loop has none (its fog is
+rendered into the views themselves).
 """
 
 from __future__ import annotations
@@ -29,6 +36,17 @@ class PhotometricRanges:
     noise_std: tuple[float, float] = (0.0, 0.03)
     jpeg_probability: float = 0.5
     jpeg_quality: tuple[float, float] = (50.0, 95.0)
+    # The closed loop's sensor (`avsim.sensors.noise.SensorNoise`): whole 8-bit levels of
+    # Gaussian read noise, after rounding the frame to 8 bits. 0 and False: neither.
+    sensor_noise_std_levels: float = 0.0
+    quantise_8bit: bool = False
+
+
+# The experiment files' perception.sensor_noise_std.
+LOOP_SENSOR_NOISE_STD_LEVELS = 2.0
+CLOSED_LOOP_PHOTOMETRIC = PhotometricRanges(
+    gain=(0.95, 1.05), contrast=(1.0, 1.0), fog_density=(0.0, 0.0), blur_probability=0.0, motion_blur_probability=0.0,
+    noise_std=(0.0, 0.0), jpeg_probability=0.0, sensor_noise_std_levels=LOOP_SENSOR_NOISE_STD_LEVELS, quantise_8bit=True)
 
 
 FOG_RGB = (0.75, 0.78, 0.8)
@@ -77,4 +95,18 @@ def apply_photometric(images: torch.Tensor, ranges: PhotometricRanges, generator
         idx = torch.nonzero(jpeg).squeeze(1)
         encoded = jpeg_codec_differentiable(out[idx], quality[idx])
         out = out.index_copy(0, idx, encoded.clamp(0.0, 1.0))
+    return apply_sensor(out, ranges, generator)
+
+
+def apply_sensor(images: torch.Tensor, ranges: PhotometricRanges, generator: torch.Generator) -> torch.Tensor:
+    """The loop's sensor on (B, 3, H, W) images in [0, 1]: rounding to 8-bit levels, then
+    independent N(0, std^2) read noise per pixel and channel rounded to whole levels, then
+    clipping, as `SensorNoise.apply` does to a uint8 frame. Rounding passes the gradient
+    straight through (its derivative is zero almost everywhere, which would stop the attack)."""
+    out = images
+    if ranges.quantise_8bit:
+        out = out + ((out * 255).round() / 255 - out).detach()
+    if ranges.sensor_noise_std_levels > 0:
+        noise = torch.randn(out.shape, generator=generator, dtype=out.dtype) * ranges.sensor_noise_std_levels
+        out = (out + noise.round() / 255).clamp(0.0, 1.0)
     return out

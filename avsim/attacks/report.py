@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+from avsim.attacks.drive_by_report import disappearance_section, source_of, transfer_section
 from avsim.attacks.evaluate import FIXED_DISTANCES_M, TextureReport, display_name
 
 
@@ -45,7 +46,10 @@ def plot_drive_by(reports: list[TextureReport], placement: str, out_path: Path) 
 
 
 def write_attack_report(reports: list[TextureReport], town: str, threshold: float, texture_dir: Path,
-                        out_dir: Path, fig3_path: Path) -> Path:
+                        out_dir: Path, fig3_path: Path, drive_bys: dict | None = None,
+                        detectors_figure: Path | None = None) -> Path:
+    """report.md: the fixed-distance tables of `reports` and, with `drive_bys` ((sign, detector)
+    -> `DriveBys`), the per-frame drive-by metrics and the transfer matrix."""
     out_dir.mkdir(parents=True, exist_ok=True)
     placements = list(reports[0].conf_at_m["front"])
     plots = [plot_drive_by(reports, p, out_dir / f"drive_by_{p}.png") for p in placements]
@@ -71,6 +75,13 @@ def write_attack_report(reports: list[TextureReport], town: str, threshold: floa
     lines += ["", "'-' at a fixed distance: the sign is out of that camera's view there.", "",
               f"![front camera at 30 m]({fig3_path.name})", ""]
     lines += [f"![drive-by, {p}]({plot.name})" for p, plot in zip(placements, plots)]
+    if drive_bys:
+        budgets = {display_name(sign): budget_of(sign, texture_dir) for sign, _ in drive_bys}
+        named = {(display_name(sign), det): result for (sign, det), result in drive_bys.items()}
+        lines += ["", *disappearance_section(named, budgets),
+                  *transfer_section(named, {name: source_of(b) for name, b in budgets.items()})]
+        if detectors_figure is not None:
+            lines += [f"![confidence against distance under each detector]({detectors_figure.name})", ""]
     path = out_dir / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -11,20 +11,23 @@ import csv
 from pathlib import Path
 
 from avsim.attacks.evaluate import evaluate_texture
-from avsim.attacks.generate import check_hyperparameters, generate, prepare
+from avsim.attacks.generate import check_hyperparameters, default_bank, generate, prepare
 from avsim.config import SimConfig
 
 # The hyperparameter that is each method's budget.
-BUDGET_KEY = {"chen": "eps", "lu_v2": "eps", "lu_v3": "eps", "yang": "eps_peak", "eykholt": "max_area_fraction"}
+BUDGET_KEY = {"chen": "eps", "lu_v2": "eps", "lu_v3": "eps", "yang": "eps_peak", "eykholt": "max_area_fraction",
+              "driveby": "ssim_floor", "range_inflation": "ssim_floor"}
 
 
 def budget_sweep(method: str, budgets: list[float], out_dir: Path, steps: int, seed: int = 0,
-                 weights_path: str = "") -> tuple[Path, Path]:
-    """Write OUT/sweep_METHOD.csv and .png; textures land in OUT/textures/."""
+                 weights_path: str = "", detector: str = "detector") -> tuple[Path, Path]:
+    """Write OUT/sweep_METHOD.csv and .png; textures land in OUT/textures/ (each with its record,
+    so a closed-loop experiment can drive past them: `experiments/budget_sweep.toml`)."""
     key = BUDGET_KEY[method]
     for budget in budgets:
         check_hyperparameters(method, seed, {key: budget, "steps": steps})
-    setup = prepare(weights_path)
+    bank_spec, photometric = default_bank(method, ("front",), 85.0)
+    setup = prepare(weights_path, bank_spec, detector, photometric)
     threshold = SimConfig().policy.conf_threshold
     rows = []
     for budget in budgets:

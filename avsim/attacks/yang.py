@@ -6,7 +6,7 @@ Attention: the detector's gradient saliency on the clean sign, |d score / d text
 over `saliency_views` EOT views, blurred and normalised to [0, 1].
 Constraint: a per-texel L-infinity bound eps_peak * attention^gamma, so the budget lands where
 the detector looks and is near zero elsewhere; the face-average bound is reported as
-`mean_bound` in the result's hyperparameters.
+`mean_bound` in the result's derived figures.
 Objective: the expected stop-sign score (objectness x class) over EOT views.
 """
 
@@ -43,7 +43,7 @@ class Yang(Attack):
         attention = saliency_attention(self.scene, clean, self.saliency_views, generator)
         bound = self.eps_peak * attention ** self.gamma
         mask = self.scene.face_mask
-        self.hyperparameters["mean_bound"] = round(float((bound * mask).sum() / mask.sum()), 4)
+        self.derived["mean_bound"] = round(float((bound * mask).sum() / mask.sum()), 4)
 
         def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
             return self.scene.evidence(texture, self.views_per_step, gen).score.mean()

@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from avsim.attacks import success as attack_success
 from avsim.config import SimConfig, VehicleConfig, with_overrides
 from avsim.experiments import study
 from avsim.experiments.spec import Experiment
@@ -63,12 +64,14 @@ class Cells:
         self.traces: dict[tuple[str, str], list[dict[str, list[float]]]] = defaultdict(list)
         # Failed runs have no outcome; they are counted, never shown as stopped or run past.
         self.failed: dict[tuple[str, str], int] = defaultdict(int)
+        self.seeds: dict[tuple[str, str], list[int]] = defaultdict(list)  # of the results, in their order
         for record in sorted(records, key=lambda r: r["seed"]):
             if record["status"] != "ok":
                 self.failed[record["experiment"], record["cell"]] += 1
             else:
                 self.results[record["experiment"], record["cell"]].append(record["result"])
                 self.traces[record["experiment"], record["cell"]].append(record["trace"])
+                self.seeds[record["experiment"], record["cell"]].append(record["seed"])
 
     def of(self, experiment: str, cell: str) -> list[dict[str, Any]]:
         return self.results.get((experiment, cell), [])
@@ -337,6 +340,39 @@ def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
             *_table(["town, placement", *policies], rows)]
 
 
+def attack_success_section(cells: Cells, experiment: Experiment) -> list[str]:
+    """Closed-loop attack success per cell (`avsim.attacks.success`), each attacked cell paired
+    with the clean cell of the same town, placement, policy and perception; then pooled over
+    towns and placements per sign, perception and policy."""
+    stem = experiment.path.stem
+
+    def situation(config) -> tuple:
+        return config.scenario.town, config.scenario.placement, config.policy.name, config.perception.kind
+
+    clean_cells = {situation(c.config): c.name for c in experiment.cells if c.config.scenario.sign == "clean"}
+    rows, pooled = [], defaultdict(list)
+    for cell in experiment.cells:
+        c = cell.config
+        clean_name = clean_cells.get(situation(c))
+        clean_by_seed = dict(zip(cells.seeds[stem, clean_name], cells.of(stem, clean_name))) if clean_name else {}
+        results, seeds = cells.of(stem, cell.name), cells.seeds[stem, cell.name]
+        s = attack_success.success(results, seeds, clean_by_seed if c.scenario.sign != "clean" else None)
+        rows.append([cell.name, c.scenario.sign, c.perception.kind, f"{c.scenario.town} {c.scenario.placement}",
+                     c.policy.name, *attack_success.success_row(s)])
+        pooled[c.scenario.sign, c.perception.kind, c.policy.name].extend(results)
+    lines = ["A run succeeds for the attacker when the car ends past the sign (ran_past_sign or never_braked). "
+             "The overrun is the front bumper past the sign at the end; the loop ends a run 40 m past it, so "
+             "a car still rolling there counts 40 m. The braking delay is the clean cell's braking distance "
+             "minus this one's, paired by seed.", "",
+             *_table(["cell", "sign", "perception", "town, placement", "policy", *attack_success.SUCCESS_HEADER], rows)]
+    if len({situation(c.config)[:2] for c in experiment.cells}) > 1:
+        pooled_rows = [[sign, kind, policy, *attack_success.success_row(attack_success.success(results))]
+                       for (sign, kind, policy), results in pooled.items()]
+        lines += ["Pooled over the towns and placements:", "",
+                  *_table(["sign", "perception", "policy", *attack_success.SUCCESS_HEADER], pooled_rows)]
+    return lines
+
+
 _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[str]]] = {
     "cells": lambda cells, experiment, by_name: [],
     "table3": lambda cells, experiment, by_name: _table3(cells, experiment.name),
@@ -347,6 +383,7 @@ _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[s
     "compare": lambda cells, experiment, by_name: compare_section(cells, experiment, by_name.get(experiment.compare_with)),
     "sensitivity": sensitivity_section,
     "stop_rates": lambda cells, experiment, by_name: stop_rates(cells, experiment),
+    "attack_success": lambda cells, experiment, by_name: attack_success_section(cells, experiment),
 }
 
 

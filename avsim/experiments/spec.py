@@ -52,7 +52,10 @@ TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary"
 # cell beside the same-named cell of the experiment named by `compare_with` (a file stem);
 # "sensitivity" gives one table per policy or perception constant that varies across the cells.
 # "stop_rates" gives each policy's stop rate per town and placement with its Wilson interval.
-REPORT_KINDS = ("cells", "table3", "table1", "table2", "fig3", "adaptive", "compare", "sensitivity", "stop_rates")
+# "attack_success" gives each cell's closed-loop attack success rate, overrun and braking delay
+# against the clean cell of the same town, placement, policy and perception (`avsim.attacks.success`).
+REPORT_KINDS = ("cells", "table3", "table1", "table2", "fig3", "adaptive", "compare", "sensitivity", "stop_rates",
+                "attack_success")
 DEFAULT_SEEDS = 5
 # Second word of the [vary] generator's seed, so its draws are independent of the start
 # jitter, which ClosedLoop draws from default_rng(scenario.seed).

@@ -89,12 +89,21 @@ class Vehicle:
         self.last_max_brake_slip: float | None = None
 
     # ---- state --------------------------------------------------------------------
-    def place(self, x_m: float, y_m: float, yaw_rad: float, speed_mps: float) -> None:
+    def place(self, x_m: float, y_m: float, yaw_rad: float, speed_mps: float, pitch_rad: float = 0.0) -> None:
         """Put the car on the road at body-origin (x, y), heading yaw, rolling at speed,
-        with the suspension at its static ride height and the brakes released."""
+        with the suspension at its static ride height and the brakes released.
+
+        pitch_rad: the body's pitch, positive nose down (as `pitch_rad()` reads it), for posing
+        the cameras as the suspension tilts them under braking; 0 is level.
+        """
         q = self.data.qpos
         q[self._qpos: self._qpos + 3] = (x_m, y_m, RIDE_HEIGHT_M)
-        q[self._qpos + 3: self._qpos + 7] = (math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2))
+        cy, sy = math.cos(yaw_rad / 2), math.sin(yaw_rad / 2)
+        if pitch_rad == 0.0:
+            q[self._qpos + 3: self._qpos + 7] = (cy, 0.0, 0.0, sy)
+        else:  # yaw about the world z, then pitch about the body's own y axis: q_yaw * q_pitch
+            cp, sp = math.cos(pitch_rad / 2), math.sin(pitch_rad / 2)
+            q[self._qpos + 3: self._qpos + 7] = (cy * cp, -sy * sp, cy * sp, sy * cp)
         q[self._susp_qpos] = 0.0
         v = self.data.qvel
         v[self._qvel: self._qvel + 6] = 0.0

@@ -16,7 +16,11 @@ from avsim.attacks.view_bank import ViewBankSpec, build_view_bank
 from avsim.world.signs import SIGN_SHAPES
 from avsim.world.textures import TEXTURE_DIR, load_texture_png
 
+# The five study families (each shipped as textures/NAME.png) and the closed-loop ones of issue 14.
 SHIPPED_ATTACKS = ["chen", "eykholt", "lu_v2", "lu_v3", "yang"]
+CLOSED_LOOP_ATTACKS = ["driveby", "range_inflation"]
+# Every attacked texture in textures/ has its JSON record beside it.
+SHIPPED_TEXTURES = sorted(p.stem for p in TEXTURE_DIR.glob("*.json"))
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +37,7 @@ def small_scene(clean_small):
 
 
 def test_every_attack_is_registered_and_cites_its_paper():
-    assert ATTACKS.names() == sorted(SHIPPED_ATTACKS)
+    assert ATTACKS.names() == sorted(SHIPPED_ATTACKS + CLOSED_LOOP_ATTACKS)
     for name in ATTACKS.names():
         attack_class = ATTACKS.get(name)
         assert attack_class.paper
@@ -75,26 +79,25 @@ def test_same_seed_same_texture(small_scene, clean_small):
     assert torch.equal(first, second)
 
 
-# Every attacked texture in textures/, the adaptive (front + side camera) one included.
-@pytest.mark.parametrize("method", [*SHIPPED_ATTACKS, "adaptive"])
-def test_shipped_textures_keep_their_budget(method):
-    png, record_path = TEXTURE_DIR / f"{method}.png", TEXTURE_DIR / f"{method}.json"
+@pytest.mark.parametrize("name", SHIPPED_TEXTURES)
+def test_shipped_textures_keep_their_budget_on_the_png(name):
+    png, record_path = TEXTURE_DIR / f"{name}.png", TEXTURE_DIR / f"{name}.json"
     record = json.loads(record_path.read_text())
     clean = texture_tensor(load_texture_png(TEXTURE_DIR / "stop_sign.png"))
     attacked = texture_tensor(load_texture_png(png))
     face = (face_alpha(SIGN_SHAPES["stop_sign"], *clean.shape[-2:]) > 0.5).float()
     measured_ssim = ssim(attacked, clean, face)
-    assert measured_ssim >= SSIM_FLOOR
-    assert measured_ssim == pytest.approx(record["ssim"], abs=2e-3)
+    assert measured_ssim >= max(SSIM_FLOOR, record.get("ssim_floor", SSIM_FLOOR))
+    assert measured_ssim == pytest.approx(record["ssim"], abs=1e-4)
     # Nothing changes off the sign face.
     assert torch.all(attacked[:, face[0] == 0] == clean[:, face[0] == 0])
     hyper = record["hyperparameters"]
     bound = hyper.get("eps", hyper.get("eps_peak"))
     if bound is not None:
-        assert linf(attacked, clean) <= bound + 1 / 255  # 8-bit rounding
-    else:  # stickers: the changed area is within its bound
-        changed = (attacked - clean).abs().amax(dim=0) > 1 / 255
-        assert changed.float().sum() / face.sum() <= hyper["max_area_fraction"] + 0.02
+        assert linf(attacked, clean) <= bound + 0.5 / 255  # 8-bit rounding
+    if "max_area_fraction" in hyper:  # stickers: the changed area is within its bound, with zero tolerance
+        changed = (attacked - clean).abs().amax(dim=0) > 0
+        assert float(changed.sum()) <= hyper["max_area_fraction"] * float(face.sum())
 
 
 @pytest.mark.parametrize("content, mention", [(b"not a png at all", "not a PNG"), (None, "does not exist")],

@@ -1,0 +1,174 @@
+"""The detectors an attack is optimised against (`avsim attack generate --detector NAME`).
+
+Each target takes camera crops with the attacked sign drawn in, (B, 3, S, S) RGB in [0, 1],
+and the sign's box in them, (B, 4) xyxy [crop px], and returns a `StopEvidence` per view,
+differentiable in the pixels:
+- `detector`: avsim's own sign detector, on the crop at the camera's resolution, as the
+  closed loop runs it;
+- `coco`: the COCO CenterNet port (`avsim.perception.coco`), fed as `perception.coco_input`
+  = upscale feeds it in the loop: the crop enlarged `upscale` times with TensorFlow's
+  bilinear resize, values 0-255. Its stop-sign heatmap (after the sigmoid, before peak
+  extraction) is the score; its top and bottom edge distances give the box height;
+- `ensemble`: both; a view's score is a soft maximum of the two, so a step works on
+  whichever detector still sees the sign, and the box height is their geometric mean.
+
+`weight_hashes()` names the weight files and their sha256, for the texture's metadata.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Protocol
+
+import torch
+
+from avsim.attacks.objective import (StopEvidence, cells_near_boxes, masked_max, reported_height_px, soft_maximum,
+                                     stop_evidence)
+from avsim.errors import ConfigError
+from avsim.perception.coco.labels import STOP_SIGN_CLASS_ID
+from avsim.perception.coco.ops import upsample_bilinear_tf
+from avsim.perception.detector.model import SignDetector
+
+TARGET_NAMES = ("detector", "coco", "ensemble")
+# A CenterNet cell predicts the object whose centre it holds; cells this far outside the sign's
+# box [crop px] are left to the attack too, as for the own detector's cells.
+NEAR_MARGIN_PX = 8.0
+# Soft maximum of the two detectors' scores in `ensemble` (about the larger one).
+ENSEMBLE_TEMPERATURE = 0.05
+
+
+class Target(Protocol):
+    name: str
+
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence: ...
+
+    def weight_hashes(self) -> dict[str, str]: ...
+
+
+def _frozen(module: torch.nn.Module) -> torch.nn.Module:
+    module.eval()
+    for parameter in module.parameters():
+        parameter.requires_grad_(False)
+    return module
+
+
+def sha256_file(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+class DetectorTarget:
+    """avsim's sign detector (fused, frozen)."""
+
+    name = "detector"
+
+    def __init__(self, detector: SignDetector, weights_path: Path | None = None) -> None:
+        self.detector = _frozen(detector)
+        self.weights_path = weights_path
+
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        return stop_evidence(self.detector(images), self.detector.strides, sign_boxes_px)
+
+    def weight_hashes(self) -> dict[str, str]:
+        return {self.weights_path.name: sha256_file(self.weights_path)} if self.weights_path else {}
+
+
+class CocoTarget:
+    """The COCO CenterNet, on each view's crop upscaled by `upscale` (2 = the loop's default).
+
+    crop_px: the network sees a crop_px x crop_px square around the sign (clipped to the view)
+    rather than the whole view; a multiple of 16 so that the upscaled input is a multiple of 32.
+    The network costs about 4x per doubling of the side, and its cells near the sign see the
+    same pixels either way apart from context (`tests/attacks/test_targets.py` measures the
+    score against the closed loop's own runner).
+    """
+
+    name = "coco"
+
+    def __init__(self, model, upscale: int = 2, crop_px: int | None = 128, cache_dir: Path | None = None) -> None:
+        if crop_px is not None and crop_px % 16:
+            raise ValueError(f"COCO target crop must be a multiple of 16 px, got {crop_px}")
+        self.model = _frozen(model)
+        self.upscale = upscale
+        self.crop_px = crop_px
+        self.cache_dir = cache_dir
+
+    def _crops(self, images: torch.Tensor, boxes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(B, 3, c, c) squares around each sign and the boxes in them."""
+        size = images.shape[-1]
+        if self.crop_px is None or self.crop_px >= size:
+            return images, boxes
+        centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+        origins = (centres - self.crop_px / 2).round().clamp(0, size - self.crop_px).long()
+        crops = torch.stack([image[:, int(y):int(y) + self.crop_px, int(x):int(x) + self.crop_px]
+                             for image, (x, y) in zip(images, origins.tolist())])
+        return crops, boxes - origins.repeat(1, 2).to(boxes.dtype)
+
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        crops, boxes = self._crops(images, sign_boxes_px)
+        x = upsample_bilinear_tf(crops * 255.0, (self.upscale, self.upscale)) if self.upscale > 1 else crops * 255.0
+        heatmap, wh = self.model.maps(x.contiguous(memory_format=torch.channels_last))
+        stride = x.shape[-1] / heatmap.shape[-1]
+        b, _, h, w = heatmap.shape
+        rows, cols = torch.meshgrid(torch.arange(h, dtype=x.dtype), torch.arange(w, dtype=x.dtype), indexing="ij")
+        # The graph puts a cell's box centre at (4 col, 4 row) input px (`coco.decode`).
+        centres = torch.stack([cols.reshape(-1), rows.reshape(-1)], dim=1) * stride / self.upscale  # crop px
+        near = cells_near_boxes(centres, boxes.to(x.dtype), NEAR_MARGIN_PX)
+        score = heatmap[:, STOP_SIGN_CLASS_ID].reshape(b, -1)
+        heights_px = (wh[:, 1] + wh[:, 3]).reshape(b, -1) / self.upscale
+        best = masked_max(score, near, 0.0)
+        logit = torch.logit(best.clamp(1e-6, 1 - 1e-6))
+        return StopEvidence(best, best, best, logit, reported_height_px(heights_px, score, near))
+
+    def weight_hashes(self) -> dict[str, str]:
+        from avsim.perception.coco import fetch
+
+        return {name: digest for name, digest in fetch.MODEL_FILES.values()}
+
+
+class EnsembleTarget:
+    """Several targets at once; see the module docstring."""
+
+    name = "ensemble"
+
+    def __init__(self, targets: list) -> None:
+        self.targets = targets
+
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        parts = [target.evidence(images, sign_boxes_px) for target in self.targets]
+
+        def combine(field: str) -> torch.Tensor:
+            return soft_maximum(torch.stack([getattr(p, field) for p in parts], dim=-1), ENSEMBLE_TEMPERATURE)
+
+        heights = torch.exp(torch.stack([torch.log(p.box_height_px.clamp(min=0.5)) for p in parts]).mean(dim=0))
+        return StopEvidence(combine("score"), combine("objectness"), combine("class_prob"),
+                            torch.stack([p.class_logit for p in parts]).amax(dim=0), heights)
+
+    def weight_hashes(self) -> dict[str, str]:
+        return {name: digest for target in self.targets for name, digest in target.weight_hashes().items()}
+
+
+def build_target(name: str, weights_path: str = "") -> Target:
+    """The named target with the shipped (or given) detector weights and the fetched COCO files."""
+    from avsim.perception.detector.perception import resolve_weights_path
+    from avsim.perception.detector.weights import load_weights
+
+    if name not in TARGET_NAMES:
+        raise ConfigError(f"unknown attack target detector '{name}'; choose one of: {', '.join(TARGET_NAMES)}")
+
+    def own() -> DetectorTarget:
+        path = resolve_weights_path(weights_path)
+        model, _ = load_weights(path)
+        return DetectorTarget(model.fuse(), path)
+
+    def coco() -> CocoTarget:
+        from avsim.perception.coco.model import load_centernet
+
+        return CocoTarget(load_centernet())
+
+    if name == "detector":
+        return own()
+    if name == "coco":
+        return coco()
+    return EnsembleTarget([own(), coco()])
+

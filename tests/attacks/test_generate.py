@@ -1,0 +1,111 @@
+"""`avsim attack generate`: the budget on the saved PNG, sticker areas at full size, targets, and
+regeneration from a texture's JSON record (`--from`)."""
+
+import json
+
+import pytest
+import torch
+
+from avsim import cli
+from avsim.attacks.budget import ssim
+from avsim.attacks.eykholt import sticker_mask
+from avsim.attacks.generate import (apply_change, clean_stop_texture, downsample, face_mask_full, generate,
+                                    generate_from, prepare, read_recipe, texture_tensor, within_budget_on_disk)
+from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC
+from avsim.attacks.view_bank import ViewBankSpec, closed_loop_bank_spec
+from avsim.errors import ConfigError
+
+TINY_BANK = ViewBankSpec(towns=("town07",), placements=("standard",), lightings_per_cell=1, views_per_group=3,
+                         dist_range_m=(15.0, 40.0), seed=3)
+
+
+@pytest.fixture(scope="module")
+def clean():
+    full = clean_stop_texture()
+    return texture_tensor(full), downsample(full)
+
+
+@pytest.mark.parametrize("fraction", [0.05, 0.12, 0.2])
+def test_a_sticker_budget_holds_on_the_full_size_texture_with_zero_tolerance(clean, fraction):
+    clean_full, clean_small = clean
+    face_small = face_mask_full(*clean_small.shape[-2:])
+    mask = sticker_mask(face_small, 4, fraction, torch.Generator().manual_seed(0))
+    # Sticker colours far from the sign's, so every sticker texel really changes.
+    attacked = clean_small * (1 - mask) + torch.tensor([0.1, 0.9, 0.2]).view(3, 1, 1) * mask
+    full = apply_change(clean_full, clean_small, attacked, mask, fraction)
+    rgb = (full * 255).round() / 255
+    face = face_mask_full(*clean_full.shape[-2:])
+    changed = (rgb - clean_full).abs().amax(dim=0) > 0
+    assert float(changed.sum()) <= fraction * float(face.sum())
+    assert not bool(changed[face[0] == 0].any())
+    # Bilinear upsampling, the old way, spread the bars past their budget.
+    spread = apply_change(clean_full, clean_small, attacked)
+    spread_changed = ((spread * 255).round() / 255 - clean_full).abs().amax(dim=0) > 0
+    assert float(spread_changed.sum()) > float(changed.sum())
+
+
+def test_the_ssim_floor_is_met_on_the_8_bit_png(clean):
+    clean_full, _ = clean
+    noise = torch.randn(clean_full.shape, generator=torch.Generator().manual_seed(1)) * 0.25
+    attacked = (clean_full + noise * face_mask_full(*clean_full.shape[-2:])).clamp(0, 1)
+    face = face_mask_full(*clean_full.shape[-2:])
+    assert ssim(attacked, clean_full, face) < 0.5
+    rgb = within_budget_on_disk(clean_full, attacked, 0.7)
+    measured = ssim(texture_tensor(rgb), clean_full, face)
+    assert 0.7 <= measured < 0.72  # scaled back only as far as needed
+
+
+def test_a_texture_regenerates_from_its_record_bit_for_bit(tmp_path, clean):
+    setup = prepare(bank_spec=TINY_BANK)
+    first = tmp_path / "first.png"
+    _, record = generate("lu_v2", first, setup=setup, hyperparameters={"steps": 2, "views_per_step": 2}, seed=5,
+                         progress=False)
+    assert record["detector"] == "detector" and "sign_detector.pt" in record["weights_sha256"]
+    assert record["view_bank"]["views"] == len(setup.scene.bank) and record["cpu_seconds"] > 0
+    recipe = read_recipe(first.with_suffix(".json"))
+    assert recipe.bank_spec == TINY_BANK and recipe.seed == 5 and recipe.threads == record["torch_threads"]
+    second = tmp_path / "second.png"
+    generate_from(first.with_suffix(".json"), second, progress=False)
+    assert first.read_bytes() == second.read_bytes()
+
+
+def test_closed_loop_methods_get_the_closed_loop_bank_and_sensor():
+    from avsim.attacks.generate import default_bank
+
+    spec, photometric = default_bank("driveby", ("front", "side"), 60.0)
+    assert spec.frame_spacing_m == pytest.approx(60 / 3.6 * 0.05, abs=1e-4) and spec.cameras == ("front", "side")
+    assert photometric == CLOSED_LOOP_PHOTOMETRIC
+    assert default_bank("yang", ("front",), 85.0)[0] == ViewBankSpec()
+    assert closed_loop_bank_spec().braking_probability > 0
+
+
+def test_a_record_from_elsewhere_is_refused_in_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"method": "lu_v2"}))
+    with pytest.raises(ConfigError, match="not a texture record"):
+        read_recipe(bad)
+    code = cli.main(["attack", "generate", "--from", str(bad), "--out", str(tmp_path / "x.png")])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1 and "not a texture record" in err[0]
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("argv, mention", [
+    (["--from", "textures/yang.json", "--method", "yang"], "drop --method"),
+    (["--method", "driveby", "--detector", "yolo"], "--detector"),
+    (["--method", "driveby", "--ssim-floor", "1.5"], "--ssim-floor"),
+    (["--steps", "3"], "--method"),
+])
+def test_generate_flags_are_checked_before_any_work(tmp_path, capsys, argv, mention):
+    code = cli.main(["attack", "generate", *argv, "--out", str(tmp_path / "t.png")])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1 and mention in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_texture_record_names_every_weight_file_of_the_ensemble():
+    from avsim.attacks.targets import build_target
+
+    hashes = build_target("ensemble").weight_hashes()
+    assert set(hashes) == {"sign_detector.pt", "centernet.json", "centernet.bin"}
+    assert all(len(digest) == 64 for digest in hashes.values())

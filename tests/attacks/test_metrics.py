@@ -1,0 +1,102 @@
+"""The attack metrics on synthetic data: which detection stands for the sign, disappearance by
+distance, first confident detection and its delay, closed-loop success with its Wilson interval,
+and the report section that shows them."""
+
+import pytest
+
+from avsim.attacks.disappearance import DriveBys, Frame
+from avsim.attacks.drive_by_report import delay_m, disappearance_section, mean_first_m, transfer_section
+from avsim.attacks.evaluate import sign_detection
+from avsim.attacks.success import success, success_row
+from avsim.perception.base import Detection
+
+
+def test_a_confident_box_elsewhere_never_stands_for_the_sign():
+    truth = Detection("stop_sign", 1.0, (400.0, 100.0, 420.0, 120.0), "front")
+    tree = Detection("stop_sign", 0.9, (100.0, 150.0, 130.0, 180.0), "front")  # found[0]: the most confident
+    sign = Detection("stop_sign", 0.4, (401.0, 101.0, 421.0, 121.0), "front")
+    assert sign_detection([tree, sign], truth) is sign
+    assert sign_detection([tree], truth) is None
+
+
+def _drives(confidences_by_drive: dict[int, list[tuple[float, float]]], estimate_offset_m: float = 1.0) -> DriveBys:
+    result = DriveBys("x", "detector", "town07", "standard", 0.5, 40.0)
+    for drive, frames in confidences_by_drive.items():
+        for dist, conf in frames:
+            result.frames.append(Frame(drive, dist, conf, 10.0 if conf else 0.0, 10.0,
+                                       dist - estimate_offset_m if conf else None))
+    return result
+
+
+def test_disappearance_counts_frames_below_the_threshold_per_bin():
+    result = _drives({0: [(44.0, 0.9), (42.0, 0.2), (38.0, 0.6), (36.0, 0.0), (31.0, 0.55)]})
+    frames, missed, rate, (low, high) = result.disappearance(35.0, 45.0)
+    assert (frames, missed, rate) == (4, 2, 0.5)
+    assert low < 0.5 < high
+    # Any range: 44 m; inside the gate (estimate <= 40 m): 38 m.
+    assert result.first_confident_m(0, gated=False) == 44.0
+    assert result.first_confident_m(0, gated=True) == 38.0
+
+
+def test_the_delay_is_paired_by_drive_and_a_sign_never_seen_counts_to_its_last_frame():
+    clean = _drives({0: [(40.0, 0.9), (30.0, 0.9)], 1: [(39.0, 0.9), (29.0, 0.9)]})
+    attacked = _drives({0: [(40.0, 0.1), (30.0, 0.7)], 1: [(39.0, 0.1), (29.0, 0.1)]})
+    assert delay_m(attacked, clean, gated=True) == pytest.approx(((40 - 30) + (39 - 29)) / 2)
+    assert mean_first_m(attacked, gated=True) == (30.0, 1)
+    lines = "\n".join(disappearance_section({("clean", "detector"): clean, ("x", "detector"): attacked}, {}))
+    assert "| x |" in lines and "1/2" in lines
+    assert "| x | detector |" in "\n".join(transfer_section({("x", "detector"): attacked}, {"x": "detector"}))
+
+
+def _result(outcome: str, margin: float, brake: float | None) -> dict:
+    return {"outcome": outcome, "sign_margin_m": margin, "dist_at_brake_m": brake}
+
+
+def test_success_rate_overrun_and_braking_delay():
+    results = [_result("ran_past_sign", -12.0, 30.0), _result("stopped_before_line", 3.0, 39.0),
+               _result("never_braked", -40.0, None), _result("ran_past_sign", -4.0, 33.0)]
+    clean = {0: _result("stopped_before_line", 5.0, 40.0), 1: _result("stopped_before_line", 5.0, 40.0),
+             3: _result("stopped_before_line", 5.0, 39.0)}
+    s = success(results, [0, 1, 2, 3], clean)
+    assert (s.runs, s.past, s.never_braked) == (4, 3, 1)
+    assert s.rate == 0.75 and s.ci95[0] < 0.75 < s.ci95[1]
+    assert s.overrun_mean_m == pytest.approx((12 + 40 + 4) / 3) and s.overrun_worst_m == 40.0
+    assert s.brake_delay_mean_m == pytest.approx(((40 - 30) + (40 - 39) + (39 - 33)) / 3)
+    assert success_row(s)[0] == "3/4 (1 never braked)"
+
+
+def test_the_attack_success_report_pairs_each_cell_with_its_clean_cell(tmp_path):
+    from avsim.experiments.report import Cells, attack_success_section
+    from avsim.experiments.spec import load_experiment
+
+    path = tmp_path / "success.toml"
+    path.write_text('title = "t"\nseeds = 2\nreport = "attack_success"\n[defaults]\npolicy = { name = "baseline" }\n'
+                    '[[cells]]\nname = "clean"\nscenario = { sign = "clean" }\n'
+                    '[[cells]]\nname = "attacked"\nscenario = { sign = "yang" }\n')
+    experiment = load_experiment(path)
+    records = [{"experiment": "success", "cell": cell, "seed": seed, "status": "ok", "trace": {},
+                "result": _result(outcome, margin, brake)}
+               for cell, seed, outcome, margin, brake in [("clean", 0, "stopped_before_line", 5.0, 40.0),
+                                                           ("clean", 1, "stopped_before_line", 5.0, 41.0),
+                                                           ("attacked", 0, "ran_past_sign", -11.0, 28.0),
+                                                           ("attacked", 1, "stopped_past_line", 0.5, 36.0)]]
+    text = "\n".join(attack_success_section(Cells(records), experiment))
+    assert "| attacked | yang | detector | town07 standard | baseline | 1/2 |" in text
+    assert "| 11.0 | 11.0 | 32.0 | 8.5 |" in text  # overrun mean and worst, braking began, delay ((40-28)+(41-36))/2
+
+
+def test_the_attack_experiment_files_load_with_their_seeds():
+    from pathlib import Path
+
+    from avsim.experiments.spec import load_experiment
+
+    folder = Path(__file__).resolve().parents[2] / "experiments" / "attacks"
+    seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 10, "range_inflation_adjusted.toml": 20}
+    assert sorted(p.name for p in folder.glob("*.toml")) == sorted(seeds)
+    for name, n in seeds.items():
+        experiment = load_experiment(folder / name)
+        assert experiment.seeds == n and experiment.report == "attack_success"
+        assert any(c.config.scenario.sign == "clean" for c in experiment.cells)  # the pair for the braking delay
+    towns = load_experiment(folder / "success_towns.toml")
+    cells = {(c.config.scenario.town, c.config.scenario.placement) for c in towns.cells}
+    assert len(cells) == 8 and ("town07", "standard") not in cells
