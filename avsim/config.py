@@ -73,8 +73,8 @@ class ScenarioConfig:
     # The junction's sign turned about its post [deg], positive to the right: 0 faces the car;
     # 60-90 faces the cross street, so the sign is visible but not for this car (no stop required).
     sign_yaw_deg: float = 0.0
-    # Red sign-like props along the approach that are not stop signs ("red_signs": do-not-enter
-    # discs and red hexagonal boards, world/distractors.py), or "none".
+    # Red sign-like props along the approach that are no traffic sign ("red_signs": red and white
+    # round and hexagonal adverts of a stop sign's size, world/distractors.py), or "none".
     distractors: str = "none"
     speed_kmh: float = 85.0  # cruise target
     start_speed_kmh: float = 0.0  # the study starts from rest and accelerates

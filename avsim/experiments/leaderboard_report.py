@@ -154,8 +154,13 @@ def condition_table(board: Leaderboard, results: Results) -> list[str]:
         for name in CONDITIONS:
             found, failed = results.of(defence.name, SAFETY, (name,))
             margins = [r["sign_margin_m"] for r in found]
-            sign = board.condition(defence, name).overrides.get("scenario", {}).get("sign", board.base.scenario.sign)
-            body.append([defence.name, name, f"`{sign}`", _rate(*_stopped(found)) + (f" ({failed} failed)" if failed else ""),
+            condition = board.condition(defence, name)
+            sign = f"`{condition.overrides.get('scenario', {}).get('sign', board.base.scenario.sign)}`"
+            if name == "adaptive" and condition.overrides == board.conditions["strongest"].overrides:
+                sign += " (the strongest attack's runs: no adaptive texture yet)"
+            elif condition.overrides.get("scenario", {}).get("map_error"):
+                sign += f", map: {condition.overrides['scenario']['map_error']}"
+            body.append([defence.name, name, sign, _rate(*_stopped(found)) + (f" ({failed} failed)" if failed else ""),
                          f"{statistics.fmean(margins):.1f}" if margins else "–", f"{min(margins):.1f}" if margins else "–"])
     return _table(["defence", "condition", "sign", "stopped before the sign", "mean margin [m]", "worst margin [m]"], body)
 
