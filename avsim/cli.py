@@ -67,7 +67,7 @@ def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
 def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--town", help="town name (town03, town07, town10)")
     parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
-    parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, or a PNG path")
+    parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
     parser.add_argument("--speed-kmh", type=float, help="cruise speed [km/h]")
     parser.add_argument("--seed", type=int, help="random seed (start jitter)")
     parser.add_argument("--physics-dt-s", type=float, help="physics step [s] (default 0.002)")
@@ -144,6 +144,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                     backend=args.backend, address=args.address)
     print((out / "summary.md").read_text())
     print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
+    return 0
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    from avsim.experiments.leaderboard import DEFAULT_FILE, load_leaderboard, run_leaderboard
+
+    board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
+    out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
+                          progress=not args.no_progress, backend=args.backend, address=args.address)
+    print((out / "leaderboard.md").read_text())
+    print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
     return 0
 
 
@@ -252,7 +263,9 @@ Images of any size:
             @vladmandic/human does (aspect not kept); crop runs the network on the image at
             its own resolution (padded to a multiple of 32; slow and memory-hungry for
             large photos); upscale enlarges it by perception.coco_upscale first;
-  onnx      letterboxed into the model's own input size (640x640 if it is dynamic).
+  onnx      letterboxed into the model's own input size (640x640 if it is dynamic);
+  ensemble  detector and coco on the same image, each detection with its "source".
+perception.purify (jpeg, median) cleans each image before the network sees it.
 The oracle needs a simulated scene and cannot run on an image."""
 
 
@@ -458,9 +471,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="drive one scenario and print its summary")
     _add_scenario_flags(run)
-    run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, autopilot")
+    run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, study_stack, temporal_vote, "
+                                      "map_prior, autopilot")
     run.add_argument("--perception", help="perception: detector (trained network on RGB), coco (a COCO-trained CenterNet), "
-                                          "onnx (your YOLO-layout ONNX detector) or oracle (ground-truth boxes)")
+                                          "ensemble (both on each frame), onnx (your YOLO-layout ONNX detector) or oracle "
+                                          "(ground-truth boxes)")
     add_output_argument(run, "--json", kind=FILE, help="write the result record to this JSON file")
     add_output_argument(run, "--rrd", kind=FILE,
                         help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
@@ -498,6 +513,20 @@ def build_parser() -> argparse.ArgumentParser:
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
     swp.set_defaults(func=_cmd_sweep)
+
+    board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "
+                                               "writes leaderboard.md, leaderboard.png and results.jsonl")
+    board.add_argument("file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
+    add_output_argument(board, "--out", kind=FOLDER, default="results/leaderboard", help="results folder")
+    board.add_argument("--quick", action="store_true", help="the file's quick subset (quick_seeds per place and scenario)")
+    board.add_argument("--workers", type=int,
+                       help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)")
+    board.add_argument("--backend", choices=("local", "ray"), default="local",
+                       help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
+    board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+    board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
+    board.add_argument("--no-progress", action="store_true", help="no progress bar")
+    board.set_defaults(func=_cmd_leaderboard)
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     _add_scenario_flags(snap)

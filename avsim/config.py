@@ -24,6 +24,18 @@ C = TypeVar("C")
 COCO_INPUTS = ("resize", "crop", "upscale")
 # Values of PerceptionConfig.coco_precision: the float32 port, or its bfloat16 copy (perception/coco/bf16.py).
 COCO_PRECISIONS = ("fp32", "bf16")
+# Values of PerceptionConfig.purify (perception/purify.py) and .ensemble_fusion (perception/ensemble.py).
+PURIFIERS = ("none", "jpeg", "median")
+ENSEMBLE_FUSIONS = ("or", "and")
+# scenario.sign = NO_SIGN: no stop sign at the junction (a speed-limit sign stands on its post).
+NO_SIGN = "none"
+# Values of ScenarioConfig.distractors (world/distractors.py) and .map_error (world/hd_map.py).
+DISTRACTORS = ("none", "red_signs")
+MAP_ERRORS = ("none", "missing_stop", "phantom_stop")
+# A stop sign turned at most this far from facing the car is for the car; one turned at least
+# SIGN_YAW_NOT_OURS_DEG faces the cross street. In between it is ambiguous, and refused.
+SIGN_YAW_FACING_DEG = 30.0
+SIGN_YAW_NOT_OURS_DEG = 60.0
 
 # perception.oracle_min_box_height_px = f H / d50 with the default front camera (f = 895.7 px), the
 # stop sign's H = 0.762 m and d50 = 100.4 m, the distance at which the learned detector's clean
@@ -57,8 +69,15 @@ class ScenarioConfig:
 
     town: str = "town07"
     placement: str = "standard"
-    # Name of a texture in textures/ ("clean" is the generated stop sign) or a path to a PNG.
+    # Name of a texture in textures/ ("clean" is the generated stop sign) or a path to a PNG;
+    # "none" (NO_SIGN): no stop sign, a speed-limit sign on its post and no stop line painted.
     sign: str = "clean"
+    # The junction's sign turned about its post [deg], positive to the right: 0 faces the car;
+    # 60-90 faces the cross street, so the sign is visible but not for this car (no stop required).
+    sign_yaw_deg: float = 0.0
+    # Red sign-like props along the approach that are no traffic sign ("red_signs": red and white
+    # round and hexagonal adverts of a stop sign's size, world/distractors.py), or "none".
+    distractors: str = "none"
     speed_kmh: float = 85.0  # cruise target
     start_speed_kmh: float = 0.0  # the study starts from rest and accelerates
     start_dist_m: float = 230.0  # front bumper to stop line at t = 0
@@ -77,8 +96,12 @@ class ScenarioConfig:
     # snow about 0.2, ice about 0.1. It is the friction of MuJoCo's tyre-road contacts.
     road_friction: float = 0.9
     # Error of the car's HD map: its stop line lies this far beyond the real one along the road
-    # [m] (negative: before it). Only map-reading policies (the autopilot) are affected.
+    # [m] (negative: before it). Only map-reading policies (autopilot, map_prior) are affected.
     map_stop_line_offset_m: float = 0.0
+    # The map's failure modes: "missing_stop", the junction's stop is not on the map (needs a
+    # stop in the world); "phantom_stop", the map lists a stop the world does not have (needs a
+    # junction where no stop is required); "none", the map matches the world.
+    map_error: str = "none"
 
     def __post_init__(self) -> None:
         _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
@@ -95,6 +118,25 @@ class ScenarioConfig:
                  f"scenario.road_friction must be in [0.05, 1.5] (dry 0.9, wet 0.5, snow 0.2), got {self.road_friction}")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
                  f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
+        yaw = abs(self.sign_yaw_deg)
+        _require(yaw <= 90, f"scenario.sign_yaw_deg must be in [-90, 90], got {self.sign_yaw_deg}")
+        _require(not SIGN_YAW_FACING_DEG < yaw < SIGN_YAW_NOT_OURS_DEG,
+                 f"scenario.sign_yaw_deg must be within {SIGN_YAW_FACING_DEG:g} deg of 0 (a sign for this car) or at least "
+                 f"{SIGN_YAW_NOT_OURS_DEG:g} deg (a sign for the cross street); {self.sign_yaw_deg} leaves open whom it is for")
+        _require(self.distractors in DISTRACTORS,
+                 f"scenario.distractors must be one of {', '.join(DISTRACTORS)}, got {self.distractors!r}")
+        _require(self.map_error in MAP_ERRORS, f"scenario.map_error must be one of {', '.join(MAP_ERRORS)}, got {self.map_error!r}")
+        _require(self.map_error != "missing_stop" or self.stop_required,
+                 "scenario.map_error = missing_stop needs a stop in the world (a stop sign facing the car); "
+                 "with no stop required the map has no stop to miss")
+        _require(self.map_error != "phantom_stop" or not self.stop_required,
+                 "scenario.map_error = phantom_stop needs a junction where no stop is required (scenario.sign = none, "
+                 "or scenario.sign_yaw_deg of 60-90); here the world has the stop the map lists")
+
+    @property
+    def stop_required(self) -> bool:
+        """Whether the junction requires this car to stop: a stop sign stands there and faces it."""
+        return self.sign != NO_SIGN and abs(self.sign_yaw_deg) <= SIGN_YAW_FACING_DEG
 
 
 @dataclass(frozen=True)
@@ -275,6 +317,16 @@ class PerceptionConfig:
     # scores) and its class names, index = class id; "stop_sign" is the class the policies act on.
     onnx_path: str = ""
     onnx_classes: tuple[str, ...] = ()
+    # Input purification before the network (a defence, perception/purify.py): "jpeg" re-compresses
+    # each frame at purify_jpeg_quality, "median" median-blurs it with a purify_median_kernel_px
+    # square kernel; "none" leaves it as rendered. Any pixel perception; not the oracle.
+    purify: str = "none"
+    purify_jpeg_quality: int = 75
+    purify_median_kernel_px: int = 3
+    # `ensemble` (the own detector and the COCO CenterNet on the same frame, perception/ensemble.py):
+    # "or" reports every detection of either network; "and" reports a stop sign only where both
+    # networks report one (boxes whose centres lie inside each other), at the lower confidence.
+    ensemble_fusion: str = "or"
 
     def __post_init__(self) -> None:
         for key in ("front_roi_px", "side_roi_px"):
@@ -294,6 +346,16 @@ class PerceptionConfig:
                  f"perception.coco_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.coco_precision!r}")
         _require(all(name.strip() for name in self.onnx_classes),
                  f"perception.onnx_classes must be non-empty names, got {list(self.onnx_classes)}")
+        _require(self.purify in PURIFIERS, f"perception.purify must be one of {', '.join(PURIFIERS)}, got {self.purify!r}")
+        _require(self.kind != "oracle" or self.purify == "none",
+                 "perception.purify works on pixels, and the oracle reads ground truth from the scene; choose a pixel "
+                 "perception (detector, coco, ensemble, onnx) or perception.purify = none")
+        _require(1 <= self.purify_jpeg_quality <= 100,
+                 f"perception.purify_jpeg_quality must be in [1, 100], got {self.purify_jpeg_quality}")
+        _require(self.purify_median_kernel_px in (3, 5, 7, 9),
+                 f"perception.purify_median_kernel_px must be 3, 5, 7 or 9 (an odd square kernel), got {self.purify_median_kernel_px}")
+        _require(self.ensemble_fusion in ENSEMBLE_FUSIONS,
+                 f"perception.ensemble_fusion must be one of {', '.join(ENSEMBLE_FUSIONS)}, got {self.ensemble_fusion!r}")
         _require(self.kind != "onnx" or (self.onnx_path and self.onnx_classes),
                  "perception kind 'onnx' needs perception.onnx_path (the .onnx file) and perception.onnx_classes "
                  "(its class names, index = class id, e.g. ['stop_sign', 'yield'])")
@@ -327,6 +389,16 @@ class PolicyConfig:
     # full-brake deceleration, measured at the run's road friction (avsim.vehicle.brake_test),
     # and maps a deceleration to a brake level with that measured figure.
     autopilot_decel_fraction: float = 0.7
+    # `temporal_vote`: brake once a stop sign, tracked with the car's odometry, has been seen in
+    # vote_k of the last vote_n frames at vote_conf_threshold or above (a lower per-frame threshold
+    # than conf_threshold). Its pinhole range must shrink as the car advances: fitted over the
+    # votes, range lost per metre driven within 1 +- vote_range_rate_tol, once the votes span at
+    # least vote_min_travel_m of driving.
+    vote_conf_threshold: float = 0.3
+    vote_k: int = 3
+    vote_n: int = 5
+    vote_range_rate_tol: float = 0.5
+    vote_min_travel_m: float = 1.0
 
     def __post_init__(self) -> None:
         _require(0 < self.conf_threshold < 1, f"policy.conf_threshold must be in (0, 1), got {self.conf_threshold}")
@@ -346,6 +418,12 @@ class PolicyConfig:
         _require(0 <= self.stop_margin_m <= 10, f"policy.stop_margin_m must be in [0, 10], got {self.stop_margin_m}")
         _require(0 <= self.autopilot_stop_margin_m <= 10,
                  f"policy.autopilot_stop_margin_m must be in [0, 10], got {self.autopilot_stop_margin_m}")
+        _require(0 < self.vote_conf_threshold < 1, f"policy.vote_conf_threshold must be in (0, 1), got {self.vote_conf_threshold}")
+        _require(1 <= self.vote_k <= self.vote_n <= 100,
+                 f"policy.vote_k and policy.vote_n must satisfy 1 <= vote_k <= vote_n <= 100, got {self.vote_k} and {self.vote_n}")
+        _require(0 < self.vote_range_rate_tol <= 1,
+                 f"policy.vote_range_rate_tol must be in (0, 1], got {self.vote_range_rate_tol}")
+        _require(0 <= self.vote_min_travel_m <= 50, f"policy.vote_min_travel_m must be in [0, 50] m, got {self.vote_min_travel_m}")
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,7 @@ class ClosedLoop:
                                                         config.scenario.speed_kmh / 3.6, config.loop.physics_dt_s),
         )
         # The map is privileged: only a policy that declares it uses the map is handed it.
-        self.hd_map = HdMap((self.scene.stop_line_x_m + config.scenario.map_stop_line_offset_m,))
+        self.hd_map = HdMap.for_scene(self.scene.stop_line_x_m, config.scenario)
         map_handle = MapHandle(self.hd_map, lambda: float(self.vehicle.front_bumper_xy_m()[0]))
         extra = {"map_handle": map_handle} if getattr(policy_factory, "uses_map", False) else {}
         self.policy = policy_factory(config.policy, context, **extra)
@@ -182,7 +182,8 @@ class ClosedLoop:
         stopped: whether it ended because the car stopped (`done` sets `self.stopped`)."""
         final = self._record(Controls(brake=self.records[-1].brake), BrakeDecision(self.records[-1].brake), {})
         sign = self.scene.stop_sign.base_pos_m
-        return summarise(self.records, final, (sign[0], sign[1]), stopped, self.config.to_dict())
+        return summarise(self.records, final, (sign[0], sign[1]), stopped, self.config.to_dict(),
+                         stop_required=self.scene.stop_required)
 
     def close(self) -> None:
         self.perception.close()

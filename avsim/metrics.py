@@ -28,6 +28,18 @@ STOPPED_SPEED_MPS = 0.1
 # these five cover every end.
 OUTCOMES = ("stopped_before_line", "stopped_past_line", "ran_past_sign", "never_braked", "timed_out_before_sign")
 STOPPED_BEFORE_SIGN = ("stopped_before_line", "stopped_past_line")
+# A run where no stop is required (`stop_required` false: no stop sign for this car at the junction,
+# see `avsim.world.scene.SceneInfo`) ends in one of these; "the sign" is then whatever stands at
+# the junction's sign post, and the stop line is where a stop line would be:
+#   drove_through           passed 40 m beyond the junction: correct, whether or not it braked on the way
+#   phantom_stop            braked to a stop although nothing required it
+#   timed_out_before_sign   loop.max_time_s ended the run before the junction, not stopped
+# How hard a car braked for nothing is `max_brake` (PHANTOM_BRAKE_LEVEL), not the outcome.
+NO_STOP_OUTCOMES = ("drove_through", "phantom_stop", "timed_out_before_sign")
+ALL_OUTCOMES = (*OUTCOMES, *(o for o in NO_STOP_OUTCOMES if o not in OUTCOMES))
+# A brake command above this where no stop is required is a phantom brake (the issue's 0.3: a
+# firm brake a passenger notices, well above a light touch).
+PHANTOM_BRAKE_LEVEL = 0.3
 
 
 @dataclass(frozen=True)
@@ -73,29 +85,74 @@ class RunResult:
     # Largest longitudinal slip of any wheel while braking above 5 m/s; None if the car never did.
     max_brake_slip: float | None = None
     peak_pitch_deg: float = 0.0  # largest nose-down pitch of the body over the run
+    max_brake: float = 0.0  # largest brake command of the run, in [0, 1]
+    # Whether the junction required this car to stop (a stop sign facing it); false in the
+    # availability scenarios (no stop sign, a stop sign turned to the cross street).
+    stop_required: bool = True
+    # Comfort, from the first brake command to the end (None if the car never braked), measured
+    # from the body's forward speed at the control rate (`comfort_peaks`): the largest deceleration
+    # over one control step [m/s^2] and the largest change of it between two steps [m/s^3].
+    peak_decel_mps2: float | None = None
+    peak_jerk_mps3: float | None = None
 
     @property
     def stopped_before_sign(self) -> bool:
         """Whether the car stopped with its bumper at or before the sign (either of STOPPED_BEFORE_SIGN)."""
         return self.outcome in STOPPED_BEFORE_SIGN
 
+    @property
+    def phantom_brake(self) -> bool:
+        """Whether it braked above PHANTOM_BRAKE_LEVEL where no stop was required."""
+        return is_phantom_brake(self.stop_required, self.max_brake)
+
     def to_json_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
+def is_phantom_brake(stop_required: bool, max_brake: float) -> bool:
+    """A brake command above PHANTOM_BRAKE_LEVEL in a run where no stop was required."""
+    return not stop_required and max_brake > PHANTOM_BRAKE_LEVEL
+
+
+def comfort_peaks(records: list[StepRecord], last: StepRecord) -> tuple[float | None, float | None]:
+    """(peak deceleration [m/s^2], peak jerk [m/s^3]) from the first brake command to the end;
+    (None, None) if the car never braked.
+
+    Measured from the body's forward speed at sensing time, at the control rate: the
+    deceleration over step k is (v_k - v_k+1) / dt, the speed lost over that control period
+    (a 50 ms average, which smooths the anti-lock controller's cycling at the physics rate,
+    as a passenger's body does); the jerk is the change of that deceleration from one step to
+    the next, over dt. The step before the first brake command anchors the onset, and the end
+    of braking counts too: a car that stops sheds its deceleration at once, and that lurch is
+    the jerk a passenger feels at standstill.
+    """
+    start = next((k for k, r in enumerate(records) if r.brake > 0), None)
+    if start is None:
+        return None, None
+    states = [*records[max(start - 1, 0):], last]
+    steps = [((a.speed_mps - b.speed_mps) / (b.time_s - a.time_s), (a.time_s + b.time_s) / 2)
+             for a, b in zip(states, states[1:]) if b.time_s > a.time_s]
+    braking = steps[1:] if start > 0 else steps  # the step before braking only anchors the jerk
+    if not braking:
+        return None, None
+    jerks = [abs(a2 - a1) / (t2 - t1) for (a1, t1), (a2, t2) in zip(steps, steps[1:])]
+    return max(a for a, _ in braking), max(jerks, default=None)
+
+
 def summarise(records: list[StepRecord], last: StepRecord, sign_xy_m: tuple[float, float], stopped: bool,
-              config: dict[str, Any]) -> RunResult:
+              config: dict[str, Any], stop_required: bool = True) -> RunResult:
     """Compute the run's result.
 
     records: one per control step, each with the state at sensing time;
-    last: the state when the run ended.
+    last: the state when the run ended; stop_required: whether the junction required a stop.
     """
     brake_start = next((r for r in records if r.brake > 0), None)
     detected = next((r for r in records if r.top_stop_conf > 0), None)
     time_to_stop = last.time_s - brake_start.time_s if (stopped and brake_start) else None
     margin = last.stop_line_dist_m
     outcome = classify_outcome(stopped=stopped, braked=brake_start is not None, line_dist_m=margin,
-                               sign_dist_m=last.sign_dist_m)
+                               sign_dist_m=last.sign_dist_m, stop_required=stop_required)
+    peak_decel, peak_jerk = comfort_peaks(records, last)
     return RunResult(
         stop_position_m=[last.x_m, last.y_m],
         sign_position_m=list(sign_xy_m),
@@ -112,11 +169,21 @@ def summarise(records: list[StepRecord], last: StepRecord, sign_xy_m: tuple[floa
         sim_time_s=last.time_s,
         max_brake_slip=max((r.max_brake_slip for r in records if r.max_brake_slip is not None), default=None),
         peak_pitch_deg=math.degrees(max(r.pitch_rad for r in (*records, last))),
+        max_brake=max((r.brake for r in records), default=0.0),
+        stop_required=stop_required,
+        peak_decel_mps2=peak_decel,
+        peak_jerk_mps3=peak_jerk,
     )
 
 
-def classify_outcome(*, stopped: bool, braked: bool, line_dist_m: float, sign_dist_m: float) -> str:
-    """The run's outcome (see OUTCOMES) from how it ended: bumper to line and to sign [m], > 0 before them."""
+def classify_outcome(*, stopped: bool, braked: bool, line_dist_m: float, sign_dist_m: float,
+                     stop_required: bool = True) -> str:
+    """The run's outcome from how it ended: bumper to line and to sign [m], > 0 before them. One of
+    OUTCOMES where a stop was required, of NO_STOP_OUTCOMES where none was."""
+    if not stop_required:
+        if stopped:
+            return "phantom_stop"
+        return "drove_through" if sign_dist_m < 0 else "timed_out_before_sign"
     if stopped:
         if line_dist_m >= 0:
             return "stopped_before_line"

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from avsim.metrics import RunResult
 
-# What each outcome adds after its own word, the JSON's `outcome` (one entry per OUTCOMES).
+# What each outcome adds after its own word, the JSON's `outcome` (one entry per ALL_OUTCOMES).
 _OUTCOME_DETAIL = {
     "stopped_before_line": "{line:.1f} m before the stop line ({sign:.1f} m before the sign)",
     "stopped_past_line": "{past_line:.1f} m past the stop line, {sign:.1f} m before the sign",
     "ran_past_sign": "{past:.1f} m beyond the sign, {state}; braking began {braked_at:.1f} m before it",
     "never_braked": "{past:.1f} m beyond the sign, never braked",
     "timed_out_before_sign": "the {limit:g} s time limit ended the run {sign:.1f} m before the sign; {braked}",
+    # No stop required: "the sign" is the junction's sign post, whatever stands there.
+    "drove_through": "{past:.1f} m beyond the junction's sign post, no stop required; largest brake {max_brake:.2f}",
+    "phantom_stop": "stopped {sign:.1f} m before the junction's sign post where no stop was required; braking began {braked_at:.1f} m before it",
 }
 
 
@@ -20,7 +23,7 @@ def outcome_line(result: RunResult) -> str:
     detail = _OUTCOME_DETAIL[result.outcome].format(
         line=result.margin_m, past_line=-result.margin_m, sign=result.sign_margin_m, past=-result.sign_margin_m,
         limit=result.config["loop"]["max_time_s"], braked_at=braked_at if braked_at is not None else float("nan"),
-        state="stopped" if result.time_to_stop_s is not None else "still rolling",
+        state="stopped" if result.time_to_stop_s is not None else "still rolling", max_brake=result.max_brake,
         braked=f"still rolling, braking since {braked_at:.1f} m before the sign" if braked_at is not None else "never braked")
     return f"{result.outcome}: {detail}"
 

@@ -40,3 +40,15 @@ def test_a_timed_out_run_says_where_it_was_and_whether_it_had_braked():
         records = [rec(0.0, 80.0), rec(0.05, 79.0, brake=0.3 if braked else 0.0)]
         result = summarise(records, rec(60.0, 64.6, 2.8, brake=0.3 if braked else 0.0), (1.0, -5.5), False, CONFIG)
         assert outcome_line(result) == f"timed_out_before_sign: the 60 s time limit ended the run 65.6 m before the sign; {expected}"
+
+
+@pytest.mark.parametrize("outcome, line_m, stopped, braked", [
+    ("drove_through", -41.0, False, False),
+    ("phantom_stop", 30.0, True, True),
+])
+def test_a_run_that_had_no_stop_to_make_prints_its_own_outcome(outcome, line_m, stopped, braked):
+    records = [rec(0.0, 80.0), rec(0.05, 79.0, brake=0.85 if braked else 0.0)]
+    result = summarise(records, rec(9.0, line_m, 0.0 if stopped else 20.0), (1.0, -5.5), stopped, CONFIG, stop_required=False)
+    assert result.outcome == outcome
+    printed = format_summary(result, wall_s=1.0).splitlines()[1].split()
+    assert printed[:2] == ["outcome", f"{outcome}:"]

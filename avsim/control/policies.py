@@ -1,7 +1,8 @@
 """The braking policies, one registry entry each: the study's rule, its two defences and their
-combination here; the map-reading autopilot (`avsim.control.autopilot`) and the study's literal
-stack (`avsim.control.study_stack`) in their own modules. Importing this module registers them
-all in `POLICIES`.
+combination here; the map-reading autopilot (`avsim.control.autopilot`), the study's literal
+stack (`avsim.control.study_stack`), and the defences beyond the study, temporal voting
+(`avsim.control.temporal_vote`) and the map prior (`avsim.control.map_prior`), in their own
+modules. Importing this module registers them all in `POLICIES`.
 
 Every perceiving policy here acts on a detection only through the braking gate
 (`BrakingPolicy.gated_stop_sign`): a stop sign above `policy.conf_threshold` whose pinhole
@@ -11,7 +12,8 @@ estimate of the distance to the stop line is at most `policy.trigger_dist_m`.
 from __future__ import annotations
 
 from avsim.config import PolicyConfig
-from avsim.control import autopilot, study_stack  # noqa: F401  (their registry entries)
+from avsim.control import autopilot, map_prior, study_stack, temporal_vote  # noqa: F401  (their registry entries)
+from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.pinhole import brake_command, required_decel_mps2
 from avsim.control.policy import (POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel, Observation,
                                   PolicyContext)
@@ -48,21 +50,16 @@ class AdjustedBrakingPolicy(BrakingPolicy):
       (the car only moves towards it) is not believed, and the estimate is the smaller of the
       two. A learned detector's boxes of a near, partly hidden sign come out short, and
       believing them would release the brake at the worst moment.
+    (`avsim.control.estimate.DeadReckonedEstimate` keeps it.)
     """
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         super().__init__(config, context)
-        self._estimate_m: float | None = None
+        self._estimate = DeadReckonedEstimate(context.control_dt_s)
 
     def update_estimate(self, obs: Observation) -> float | None:
-        gated = self.gated_stop_sign(obs, "front")
-        dead_reckoned = None if self._estimate_m is None else self._estimate_m - obs.speed_mps * self.context.control_dt_s
-        if gated is not None and not gated[0].truncated:
-            measured = gated[1]
-            self._estimate_m = measured if dead_reckoned is None else min(measured, dead_reckoned)
-        else:
-            self._estimate_m = dead_reckoned
-        return self._estimate_m
+        """This step's front-camera estimate of the distance to the stop line (`DeadReckonedEstimate`)."""
+        return self._estimate.update(self.gated_stop_sign(obs, "front"), obs.speed_mps)
 
     def decide(self, obs: Observation) -> BrakeDecision:
         estimate = self.update_estimate(obs)

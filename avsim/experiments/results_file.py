@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.errors import ConfigError
-from avsim.metrics import OUTCOMES, classify_outcome, write_text_atomic
+from avsim.metrics import ALL_OUTCOMES, classify_outcome, write_text_atomic
 
 RECORD_KEYS = ("experiment", "cell", "seed", "spec_hash", "status")
 STATUSES = ("ok", "failed")
@@ -97,7 +97,7 @@ def _record_problem(record: Any) -> str | None:
     if record["status"] not in STATUSES:
         return f"a record with status {record['status']!r}, not one of {', '.join(STATUSES)}"
     result = record.get("result")
-    if record["status"] == "ok" and not (isinstance(result, dict) and result.get("outcome") in (*OUTCOMES, *LEGACY_OUTCOMES)):
+    if record["status"] == "ok" and not (isinstance(result, dict) and result.get("outcome") in (*ALL_OUTCOMES, *LEGACY_OUTCOMES)):
         return "an ok record without a known outcome"
     if record["status"] == "ok" and result["outcome"] in LEGACY_OUTCOMES and not all(
             key in result for key in ("margin_m", "sign_margin_m", "dist_at_brake_m")):

@@ -41,8 +41,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from avsim.config import SimConfig, with_overrides
-from avsim.errors import ConfigError
+from avsim.config import NO_SIGN, SimConfig, with_overrides
+from avsim.errors import AvsimError, ConfigError
 
 TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary", "cells")
 # The section `avsim reproduce` writes for an experiment, declared by the file (`report = "..."`),
@@ -119,11 +119,18 @@ class Experiment:
 
     def config_for(self, cell: Cell, seed: int) -> SimConfig:
         """`cell`'s config for one run: scenario.seed = `seed`, [vary] keys drawn from `seed`."""
-        rng = np.random.default_rng((seed, _VARY_STREAM))
-        overrides: dict[str, Any] = {"scenario": {"seed": seed}}
-        for key, low, high in self.vary:
-            overrides = _deep_merge(overrides, _nested(key, round(float(rng.uniform(low, high)), _VARY_DECIMALS)))
-        return with_overrides(cell.config, overrides)
+        return config_at_seed(cell.config, self.vary, seed)
+
+
+def config_at_seed(config: SimConfig, vary: tuple[tuple[str, float, float], ...], seed: int) -> SimConfig:
+    """`config` for the run at `seed`: scenario.seed = `seed`, and each (dotted key, low, high) of
+    `vary` drawn uniformly from a generator seeded by `seed` alone, so seed k draws the same
+    values whatever the config."""
+    rng = np.random.default_rng((seed, _VARY_STREAM))
+    overrides: dict[str, Any] = {"scenario": {"seed": seed}}
+    for key, low, high in vary:
+        overrides = deep_merge(overrides, nested(key, round(float(rng.uniform(low, high)), _VARY_DECIMALS)))
+    return with_overrides(config, overrides)
 
 
 def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], default_seeds: int) -> tuple[dict[str, Any], str, int]:
@@ -162,12 +169,12 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
     """Read and check an experiment file; see the module docstring for its format."""
     path = Path(path)
     raw, title, seeds = read_run_file(path, "experiment", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
-    with _located(path, "[defaults]"):
-        defaults = _table(raw.get("defaults", {}), "defaults")
-        _reject_seed(defaults)
-        _check_registry_names(with_overrides(SimConfig(), defaults))
-    with _located(path, "[vary]"):
-        vary = _parse_vary(raw.get("vary", {}))
+    with located(path, "[defaults]"):
+        defaults = as_table(raw.get("defaults", {}), "defaults")
+        reject_seed(defaults)
+        check_registry_names(with_overrides(SimConfig(), defaults))
+    with located(path, "[vary]"):
+        vary = parse_vary(raw.get("vary", {}))
     report, compare_with = _parse_report(path, raw)
     cells = _parse_cells(path, raw.get("cells"), defaults, vary)
     return Experiment(path=path, title=title, seeds=seeds, cells=cells, vary=vary, report=report, compare_with=compare_with)
@@ -195,31 +202,31 @@ def _parse_cells(path: Path, raw_cells: Any, defaults: dict[str, Any],
     cells: list[Cell] = []
     for index, raw_cell in enumerate(raw_cells):
         where = f"cells[{index}]"
-        with _located(path, where):
-            overrides = dict(_table(raw_cell, where))
+        with located(path, where):
+            overrides = dict(as_table(raw_cell, where))
             name = overrides.pop("name", None)
             if not isinstance(name, str) or not name.strip():
                 raise ConfigError(f"'name' must be a non-empty string, got {name!r}")
         where = f'{where} "{name}"'
-        with _located(path, where):
+        with located(path, where):
             if any(c.name == name for c in cells):
                 raise ConfigError("duplicate cell name; each cell needs its own")
-            _reject_seed(overrides)
-            config = with_overrides(SimConfig(), _deep_merge(defaults, overrides))
-            _check_registry_names(config)
+            reject_seed(overrides)
+            config = with_overrides(SimConfig(), deep_merge(defaults, overrides))
+            check_registry_names(config)
         # Both ends of every [vary] range must be valid for this cell, so every draw is.
-        with _located(path, f"[vary], applied to {where}"):
+        with located(path, f"[vary], applied to {where}"):
             for key, low, high in vary:
                 for value in (low, high):
-                    with_overrides(config, _nested(key, value))
+                    with_overrides(config, nested(key, value))
         cells.append(Cell(name, config))
     return tuple(cells)
 
 
-def _parse_vary(raw: Any) -> tuple[tuple[str, float, float], ...]:
+def parse_vary(raw: Any) -> tuple[tuple[str, float, float], ...]:
     ranges = []
-    for section, keys in _table(raw, "vary").items():
-        for key, bounds in _table(keys, f"vary.{section}").items():
+    for section, keys in as_table(raw, "vary").items():
+        for key, bounds in as_table(keys, f"vary.{section}").items():
             dotted = f"{section}.{key}"
             if dotted == "scenario.seed":
                 raise ConfigError("scenario.seed cannot vary: it is the run's seed, set by 'seeds'")
@@ -228,12 +235,12 @@ def _parse_vary(raw: Any) -> tuple[tuple[str, float, float], ...]:
             if not numeric or not bounds[0] <= bounds[1]:
                 raise ConfigError(f"'{dotted}' must be a range [low, high] of two numbers with low <= high, got {bounds!r}")
             # Floats only: an int field rejects the float, naming the key.
-            with_overrides(SimConfig(), _nested(dotted, float(bounds[0])))
+            with_overrides(SimConfig(), nested(dotted, float(bounds[0])))
             ranges.append((dotted, float(bounds[0]), float(bounds[1])))
     return tuple(sorted(ranges))
 
 
-def _check_registry_names(config: SimConfig) -> None:
+def check_registry_names(config: SimConfig) -> None:
     """Fail on an unknown town, placement, policy or perception, as the run would later."""
     # Imported here: the registries pull in the world, control and perception packages.
     from avsim.control.policies import POLICIES
@@ -251,7 +258,26 @@ def _check_registry_names(config: SimConfig) -> None:
                 raise ConfigError(f"{key}: {exc}") from None
 
 
-def _reject_seed(overrides: Mapping[str, Any]) -> None:
+def check_run_names(config: SimConfig) -> Path | None:
+    """Registry names (town, placement, policy, perception) and the sign texture, decoded as the
+    scene will decode it (a PNG of a stop sign's square shape); returns the texture's resolved
+    path, or None when the scenario has no stop sign (scenario.sign = "none")."""
+    from avsim.world.scene import resolve_sign_texture
+    from avsim.world.textures import load_texture_png
+
+    check_registry_names(config)
+    sign = config.scenario.sign
+    if sign == NO_SIGN:
+        return None
+    try:
+        texture = resolve_sign_texture(sign)
+        load_texture_png(texture, expected_aspect=1.0)
+    except AvsimError as exc:  # an unknown name, or a file that is no usable PNG (TextureError)
+        raise ConfigError(f"scenario.sign: {exc}") from None
+    return texture.resolve()
+
+
+def reject_seed(overrides: Mapping[str, Any]) -> None:
     scenario = overrides.get("scenario")
     if isinstance(scenario, Mapping) and "seed" in scenario:
         raise ConfigError("scenario.seed is set per run (0 .. seeds-1); set the top-level 'seeds' instead")
@@ -260,7 +286,7 @@ def _reject_seed(overrides: Mapping[str, Any]) -> None:
 # ---- helpers -------------------------------------------------------------------------------
 
 @contextmanager
-def _located(path: Path, where: str) -> Iterator[None]:
+def located(path: Path, where: str) -> Iterator[None]:
     """Prefix a ConfigError raised inside with the file and the place in it."""
     try:
         yield
@@ -268,13 +294,13 @@ def _located(path: Path, where: str) -> Iterator[None]:
         raise ConfigError(f"{path}: {where}: {exc}") from None
 
 
-def _table(value: Any, name: str) -> dict[str, Any]:
+def as_table(value: Any, name: str) -> dict[str, Any]:
     if not isinstance(value, Mapping):
         raise ConfigError(f"'{name}' must be a table of keys, got {value!r}")
     return dict(value)
 
 
-def _nested(dotted: str, value: Any) -> dict[str, Any]:
+def nested(dotted: str, value: Any) -> dict[str, Any]:
     """A dotted key and its value as a nested override: ("a.b", 1) -> {"a": {"b": 1}}."""
     node: Any = value
     for part in reversed(dotted.split(".")):
@@ -282,9 +308,9 @@ def _nested(dotted: str, value: Any) -> dict[str, Any]:
     return node
 
 
-def _deep_merge(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+def deep_merge(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
     merged = dict(base)
     for key, value in extra.items():
         both_tables = isinstance(value, Mapping) and isinstance(merged.get(key), Mapping)
-        merged[key] = _deep_merge(merged[key], value) if both_tables else value
+        merged[key] = deep_merge(merged[key], value) if both_tables else value
     return merged

@@ -54,16 +54,14 @@ from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
-from avsim.errors import AvsimError, ConfigError, Interrupted, RunsFailedError
-from avsim.experiments.batch import RunSpec, check_backend, run_batch
-from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
-from avsim.experiments.spec import (_check_registry_names, _deep_merge, _located, _nested, _reject_seed, _table,
-                                   read_run_file)
+from avsim.errors import ConfigError, RunsFailedError
+from avsim.experiments.batch import RunSpec, check_backend
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
 
 TOP_LEVEL_KEYS = ("title", "seeds", "defaults", "grid")
 DEFAULT_SEEDS = 1
-RESULTS_FILE = "results.jsonl"
 SIGN_KEY = "scenario.sign"
 
 Scalar = str | int | float | bool
@@ -111,7 +109,7 @@ class Sweep:
     def config_at(self, point: Mapping[str, Scalar], seed: int) -> SimConfig:
         overrides: dict[str, Any] = {"scenario": {"seed": seed}}
         for key, value in point.items():
-            overrides = _deep_merge(overrides, _nested(key, value))
+            overrides = deep_merge(overrides, nested(key, value))
         return with_overrides(self.base, overrides)
 
     def runs(self) -> list[SweepRun]:
@@ -134,17 +132,17 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     path = Path(path)
     raw, title, seeds = read_run_file(path, "sweep", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
 
-    with _located(path, "[defaults]"):
-        defaults = _table(raw.get("defaults", {}), "defaults")
-        _reject_seed(defaults)
+    with located(path, "[defaults]"):
+        defaults = as_table(raw.get("defaults", {}), "defaults")
+        reject_seed(defaults)
         base = with_overrides(SimConfig(), defaults)
-        _check_names(base)
-    with _located(path, "[grid]"):
+        check_run_names(base)
+    with located(path, "[grid]"):
         grid = _parse_grid(raw.get("grid"), base)
     sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid)
     # Each value is valid alone; check every combination too (limits that tie two keys together).
     for point in sweep.points():
-        with _located(path, f"[grid] point {point_label(point)}"):
+        with located(path, f"[grid] point {point_label(point)}"):
             sweep.config_at(point, 0)
     return sweep
 
@@ -152,7 +150,7 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
 def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...]], ...]:
     if raw is None:
         raise ConfigError("no [grid] table; add one of dotted config keys and value lists, e.g. \"scenario.speed_kmh\" = [30, 60]")
-    entries = list(_flatten(_table(raw, "grid")))
+    entries = list(_flatten(as_table(raw, "grid")))
     if not entries:
         raise ConfigError("the grid is empty; give it at least one key, e.g. \"scenario.speed_kmh\" = [30, 60]")
     grid: list[tuple[str, tuple[Scalar, ...]]] = []
@@ -170,8 +168,8 @@ def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...
         for value in values:
             if isinstance(value, (Mapping, list)):
                 raise ConfigError(f"'{key}' values must be numbers, strings or booleans, got {value!r}")
-            config = with_overrides(base, _nested(key, value))  # unknown key, wrong type, out of range
-            texture = _check_names(config)
+            config = with_overrides(base, nested(key, value))  # unknown key, wrong type, out of range
+            texture = check_run_names(config)
             held = _lookup(config, key)
             if held in checked:
                 raise ConfigError(f"'{key}' lists the value {value!r} twice")
@@ -202,22 +200,6 @@ def _lookup(config: SimConfig, dotted: str) -> Scalar:
     return node
 
 
-def _check_names(config: SimConfig) -> Path:
-    """Registry names (town, placement, policy, perception) and the sign texture, decoded as the
-    scene will decode it (a PNG of a stop sign's square shape); returns the texture's resolved path."""
-    from avsim.world.scene import resolve_sign_texture
-    from avsim.world.textures import load_texture_png
-
-    _check_registry_names(config)
-    sign = config.scenario.sign
-    try:
-        texture = resolve_sign_texture(sign)
-        load_texture_png(texture, expected_aspect=1.0)
-    except AvsimError as exc:  # an unknown name, or a file that is no usable PNG (TextureError)
-        raise ConfigError(f"scenario.sign: {exc}") from None
-    return texture.resolve()
-
-
 # ---- running ---------------------------------------------------------------------------------
 
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None = None, resume: bool = False,
@@ -235,10 +217,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     check_backend(backend, address)
     out = Path(out_dir)
     results_path = out / RESULTS_FILE
-    existing = read_records(results_path)
-    if existing and not resume:
-        raise ConfigError(f"{results_path} already holds {len(existing)} runs; pass --resume to run only the "
-                          f"missing ones, or choose another --out")
+    existing = existing_records(results_path, resume)
     workers = resolve_workers(workers, address)
 
     runs = sweep.runs()
@@ -246,8 +225,6 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     point_of = {spec.spec_hash: run.point for spec, run in zip(specs, runs)}
     if len(point_of) != len(specs):
         raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
-    finished = {r["spec_hash"]: r for r in existing if r.get("status") == "ok" and r.get("spec_hash") in point_of}
-    todo = [spec for spec in specs if spec.spec_hash not in finished]
 
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
@@ -255,25 +232,10 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     out.mkdir(parents=True, exist_ok=True)
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
-    if _torn_tail(results_path):
-        rewrite(results_path, existing)  # else the next record would be glued onto the torn line
-    writer = JsonlWriter(results_path)
-    ran: dict[str, dict[str, Any]] = {}
-
-    def on_record(record: dict[str, Any]) -> None:
-        record = with_point(record, point_of[record["spec_hash"]])
-        ran[record["spec_hash"]] = record
-        writer.append(record)
-
-    try:
-        run_batch(todo, workers=workers, root=out, on_record=on_record, progress=progress, description=sweep.name,
-                  backend=backend, address=address)
-    except KeyboardInterrupt:
-        raise Interrupted(_resume_hint(sweep, out, results_path, len(finished) + len(ran))) from None
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
-    records = [ran.get(spec.spec_hash) or finished[spec.spec_hash] for spec in specs]
-    others = [r for r in existing if r.get("spec_hash") not in point_of]
-    rewrite(results_path, records + others)
+    records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out} --resume",
+                                 workers=workers, progress=progress, description=sweep.name, backend=backend,
+                                 address=address, decorate=lambda record: with_point(record, point_of[record["spec_hash"]]))
     wall_s = time.perf_counter() - started
     options = [f"--workers {workers}" if workers is not None else "",
                f"--backend {backend}" if backend != "local" else "",
@@ -287,8 +249,8 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
         "address": address,
         "workers": workers,
         "runs": len(records),
-        "ran": len(todo),
-        "reused": len(specs) - len(todo),
+        "ran": ran,
+        "reused": len(specs) - ran,
         "failed": sum(1 for r in records if r["status"] == "failed"),
         "grid": {key: list(values) for key, values in sweep.grid},
         "seeds": sweep.seeds,
@@ -302,24 +264,6 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
         raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); "
                               f"see {out / 'summary.md'}")
     return out
-
-
-def _resume_hint(sweep: Sweep, out: Path, results_path: Path, finished: int) -> str:
-    """What an interrupted sweep kept, and the command that finishes it."""
-    command = f"avsim sweep {sweep.path} --out {out} --resume"
-    if not finished:
-        return f"no run had finished; run it again with: {command}"
-    return f"{finished} finished run{'s are' if finished != 1 else ' is'} in {results_path}; resume with: {command}"
-
-
-def _torn_tail(path: Path) -> bool:
-    """True when `path` ends in a line without its newline: a write cut short by a crash."""
-    try:
-        with path.open("rb") as f:
-            f.seek(-1, os.SEEK_END)
-            return f.read(1) != b"\n"
-    except OSError:  # no file, or an empty one
-        return False
 
 
 def _history(manifest_path: Path) -> list[dict[str, Any]]:

@@ -20,6 +20,8 @@ class Detection:
     camera: which car camera saw it ("front" or "side").
     truncated: the box touches the image border, so part of the sign may be cut off
     and its height is not a safe basis for a range estimate.
+    source: which network reported it, in a perception that runs several (`ensemble`:
+    "detector", "coco", or "detector+coco" for a stop sign both confirmed); "" otherwise.
     """
 
     class_name: str
@@ -27,6 +29,7 @@ class Detection:
     box_xyxy_px: tuple[float, float, float, float]
     camera: str
     truncated: bool = False
+    source: str = ""
 
     @property
     def height_px(self) -> float:

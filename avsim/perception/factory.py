@@ -61,17 +61,37 @@ def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
     return OnnxRunner(config.onnx_path, config.onnx_classes, config.min_confidence, config.threads)
 
 
+def _ensemble_frames(config: PerceptionConfig) -> "FrameDetector":
+    from avsim.perception.ensemble import ENSEMBLE_MEMBERS, EnsembleDetector
+
+    return EnsembleDetector({name: FRAME_DETECTORS.get(name)(config) for name in ENSEMBLE_MEMBERS}, config.ensemble_fusion)
+
+
 FRAME_DETECTORS.add("detector", _detector_frames)
 FRAME_DETECTORS.add("coco", _coco_frames)
 FRAME_DETECTORS.add("onnx", _onnx_frames)
+FRAME_DETECTORS.add("ensemble", _ensemble_frames)
 
 
 def build_frame_detector(config: PerceptionConfig) -> "FrameDetector":
-    """The configured perception as a detector of image pixels; the oracle has none (it reads a scene)."""
+    """The configured perception as a detector of image pixels, behind its purifier if it has one
+    (`perception.purify`); the oracle has none (it reads a scene)."""
     if config.kind == "oracle":
         raise ConfigError("the oracle perception reads ground truth from a simulated scene, not from pixels, so it cannot "
                           f"run on an image; choose one of: {', '.join(FRAME_DETECTORS.names())}")
-    return FRAME_DETECTORS.get(config.kind)(config)
+    from avsim.perception.purify import PurifiedDetector, build_purifier
+
+    detector = FRAME_DETECTORS.get(config.kind)(config)
+    purifier = build_purifier(config)
+    return detector if purifier is None else PurifiedDetector(detector, purifier)
+
+
+def networks_per_frame(config: PerceptionConfig) -> int:
+    """How many networks the perception runs on each camera frame: 0 for the oracle (it renders
+    segmentation instead), the members of an ensemble, else 1."""
+    from avsim.perception.ensemble import ENSEMBLE_MEMBERS
+
+    return {"oracle": 0, "ensemble": len(ENSEMBLE_MEMBERS)}.get(config.kind, 1)
 
 
 def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
@@ -86,6 +106,7 @@ def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: Sc
 PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
 PERCEPTIONS.add("onnx", _frame_perception)
+PERCEPTIONS.add("ensemble", _frame_perception)
 
 
 def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0) -> Perception:

@@ -38,7 +38,8 @@ def detect_images(config: PerceptionConfig, paths: list[Path]) -> Iterator[dict[
     """One record per image: {"image", "width", "height", "perception", "detections": [...]}.
 
     Every file is checked before the network is built; each detection is
-    {"class", "confidence", "box_xyxy_px"} in the image's own pixels, highest confidence first.
+    {"class", "confidence", "box_xyxy_px"} in the image's own pixels, highest confidence first,
+    with "source" (the network that reported it) from a perception that runs several (`ensemble`).
     """
     _check_readable(paths)
     detector = build_frame_detector(config)
@@ -51,5 +52,6 @@ def detect_images(config: PerceptionConfig, paths: list[Path]) -> Iterator[dict[
             "height": int(image.shape[0]),
             "perception": config.kind,
             "detections": [{"class": d.class_name, "confidence": round(d.confidence, 6),
-                            "box_xyxy_px": [round(v, 3) for v in d.box_xyxy_px]} for d in detections],
+                            "box_xyxy_px": [round(v, 3) for v in d.box_xyxy_px], **({"source": d.source} if d.source else {})}
+                           for d in detections],
         }

@@ -2,9 +2,11 @@
 
 Production stacks take stop lines from their HD map (Apollo its stop signs, Autoware its
 traffic lights). In avsim the map is built from the scene, with the scenario's map errors
-applied: `scenario.map_stop_line_offset_m` moves the mapped stop line along the road (a map
-that disagrees with the world). The map is privileged: only a policy that declares `uses_map`
-is given a `MapHandle`, and nothing else in a policy's observation comes from it.
+applied (`HdMap.for_scene`): `scenario.map_stop_line_offset_m` moves the mapped stop line along
+the road (a map that disagrees with the world); `scenario.map_error` leaves the junction's stop
+off the map ("missing_stop", a known cause of stacks running stop signs in CARLA) or lists one
+the world does not have ("phantom_stop"). The map is privileged: only a policy that declares
+`uses_map` is given a `MapHandle`, and nothing else in a policy's observation comes from it.
 
 World frame as in `avsim.world.road` (x along the road, y left, z up) [m].
 """
@@ -13,6 +15,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+
+from avsim.config import ScenarioConfig
 
 # A stop line the bumper has just crossed still counts, so a car that overshoots a little keeps
 # braking for it instead of looking for the next one [m].
@@ -24,6 +28,13 @@ class HdMap:
     """Stop lines on the car's road, as world x of their near edge [m], in driving order."""
 
     stop_lines_x_m: tuple[float, ...]
+
+    @classmethod
+    def for_scene(cls, stop_line_x_m: float, scenario: ScenarioConfig) -> HdMap:
+        """The map of a scene whose junction's stop line is (or would be) at world x `stop_line_x_m`:
+        the junction's stop when the world requires one, with the scenario's map errors applied."""
+        mapped = (scenario.stop_required and scenario.map_error != "missing_stop") or scenario.map_error == "phantom_stop"
+        return cls((stop_line_x_m + scenario.map_stop_line_offset_m,) if mapped else ())
 
     def next_stop_line_x_m(self, x_m: float) -> float | None:
         """The first mapped stop line at or ahead of world x `x_m`; None if there is none."""

@@ -63,8 +63,9 @@ def _box(spec: mujoco.MjSpec, name: str, centre: tuple[float, float, float], hal
                             contype=0, conaffinity=0)
 
 
-def add_road(spec: mujoco.MjSpec, layout: RoadLayout) -> None:
-    """Add asphalt, lane paint, stop line, sidewalks and a cross street to `spec`.
+def add_road(spec: mujoco.MjSpec, layout: RoadLayout, stop_line: bool = True) -> None:
+    """Add asphalt, lane paint, stop line (unless `stop_line` is false), sidewalks and a cross
+    street to `spec`.
 
     Expects the materials of `avsim.world.props.add_materials`.
     """
@@ -98,8 +99,9 @@ def add_road(spec: mujoco.MjSpec, layout: RoadLayout) -> None:
 
     # Stop line across the travelled direction's lanes only.
     lanes_w = layout.lanes_per_direction * lw
-    _box(spec, "road/stop_line", (STOP_LINE_X_M + STOP_LINE_WIDTH_M / 2, -(layout.median_width_m / 2 + lanes_w / 2), PAINT_Z_M / 2),
-         (STOP_LINE_WIDTH_M / 2, lanes_w / 2, PAINT_Z_M / 2), "paint_white")
+    if stop_line:
+        _box(spec, "road/stop_line", (STOP_LINE_X_M + STOP_LINE_WIDTH_M / 2, -(layout.median_width_m / 2 + lanes_w / 2), PAINT_Z_M / 2),
+             (STOP_LINE_WIDTH_M / 2, lanes_w / 2, PAINT_Z_M / 2), "paint_white")
     # Crosswalk bars between the stop line and the cross street.
     for k, y in enumerate(range(int(-half_w) + 1, int(half_w), 2)):
         _box(spec, f"road/crosswalk_{k}", (STOP_LINE_X_M + STOP_LINE_WIDTH_M + 1.5, y + 0.5, PAINT_Z_M / 2), (1.2, 0.4, PAINT_Z_M / 2), "paint_white")

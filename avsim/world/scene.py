@@ -14,10 +14,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from avsim.config import CameraConfig, SimConfig, VehicleConfig
+from avsim.config import NO_SIGN, CameraConfig, SimConfig, VehicleConfig
 from avsim.errors import ConfigError
 from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
 from avsim.world import props
+from avsim.world.distractors import add_red_signs
 from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
 from avsim.world.signs import SIGN_SHAPES, PlacedSign, add_sign
 from avsim.world.textures import CLEAN_TEXTURE_FILES, TEXTURE_DIR, load_texture_png
@@ -27,6 +28,8 @@ from avsim.world.towns.base import SIGN_BOTTOM_M
 STOP_SIGN_NAME = "stop_sign"
 # The sign stands just past the stop line, as at a US junction.
 SIGN_BEYOND_STOP_LINE_M = 1.0
+# What stands on the junction's sign post when there is no stop sign (scenario.sign = "none").
+NO_STOP_SIGN_KIND = "speed_limit"
 # Depth range of the cameras [m]: near enough for the hood, far enough for the sky.
 ZNEAR_M, ZFAR_M = 0.2, 1500.0
 # MuJoCo scales znear/zfar/fog by the model extent; fixing it keeps them in metres / 100.
@@ -35,14 +38,22 @@ EXTENT_M = 100.0
 
 @dataclass(frozen=True)
 class SceneInfo:
-    """Facts about a built scene that the loop, policies and metrics need (world frame, m)."""
+    """Facts about a built scene that the loop, policies and metrics need (world frame, m).
+
+    stop_sign: the sign on the junction's post, just past the stop line. A stop sign facing
+    the car in every scenario that requires a stop; where none is required (`stop_required`
+    false) it is whatever stands there instead: a speed-limit sign (scenario.sign = "none") or
+    a stop sign turned to the cross street. Distances "to the sign" are to this post either way.
+    stop_line_x_m: where the stop line is, or would be where none is painted.
+    """
 
     town: str
     placement: str
     layout: RoadLayout
-    stop_sign: PlacedSign  # the sign at the stop line (a stop sign in every driving scenario)
+    stop_sign: PlacedSign
     signs: tuple[PlacedSign, ...]
     stop_line_x_m: float = STOP_LINE_X_M
+    stop_required: bool = True
 
 
 def resolve_sign_texture(sign: str) -> Path:
@@ -68,13 +79,21 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
                   add_extras: Callable[[mujoco.MjSpec, SceneInfo], None] | None = None) -> tuple[mujoco.MjSpec, SceneInfo]:
     """The uncompiled scene for `config`.
 
-    target_kind: the sign at the stop line. It is a stop sign in every driving scenario;
-    detector training data puts other kinds there too (a clean texture of that kind).
+    target_kind: the sign at the stop line. It is a stop sign in every driving scenario (a
+    speed-limit sign with scenario.sign = "none"); detector training data puts other kinds there
+    too (a clean texture of that kind).
     add_extras: called before the car is attached, to add props (e.g. distractors).
+
+    A junction that requires no stop of this car (`ScenarioConfig.stop_required` false: no stop
+    sign, or one turned to the cross street) has no stop line painted on the approach: a stop
+    line marks where a stop sign or signal requires a stop (MUTCD 3B.16), and a line with no
+    sign would be a road that contradicts itself.
     """
     scenario = config.scenario
     town = TOWNS.get(scenario.town)
     lateral_offset_m = PLACEMENTS.get(scenario.placement)
+    if target_kind == "stop_sign" and scenario.sign == NO_SIGN:
+        target_kind = NO_STOP_SIGN_KIND
     if target_kind == "stop_sign":
         target_texture = load_texture_png(resolve_sign_texture(scenario.sign), expected_aspect=1.0)
     else:
@@ -86,19 +105,23 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     props.add_materials(spec)
     props.add_ground(spec, town.ground_material)
     _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
-    add_road(spec, town.layout)
+    add_road(spec, town.layout, stop_line=scenario.stop_required)
     rng = np.random.default_rng(scenario.layout_seed)
     extra_signs = town.build_scenery(spec, town.layout, rng)
+    if scenario.distractors == "red_signs":
+        add_red_signs(spec, town.layout)
 
     target = PlacedSign(
         STOP_SIGN_NAME if target_kind == "stop_sign" else f"target_{target_kind}", target_kind,
         (STOP_LINE_X_M + SIGN_BEYOND_STOP_LINE_M, town.layout.lane_edge_y_m - lateral_offset_m, 0.0),
-        0.0, SIGN_BOTTOM_M,
+        # Positive sign_yaw_deg turns the face towards the car's right (-y), to the cross street.
+        math.radians(scenario.sign_yaw_deg), SIGN_BOTTOM_M,
     )
     add_sign(spec, target, target_texture)
     for sign in extra_signs:
         add_sign(spec, sign, _clean_texture(sign.kind))
-    info = SceneInfo(town.name, scenario.placement, town.layout, target, (target, *extra_signs))
+    info = SceneInfo(town.name, scenario.placement, town.layout, target, (target, *extra_signs),
+                     stop_required=scenario.stop_required)
     if add_extras is not None:
         add_extras(spec, info)
     _attach_car(spec, config.vehicle, config.camera)

@@ -152,30 +152,36 @@ def add_sign(spec: mujoco.MjSpec, sign: PlacedSign, texture_rgb: np.ndarray) -> 
     texture_rgb: (H, W, 3) uint8, RGB, covering the face's `width_m` x `height_m`
     footprint with row 0 at the top edge.
     """
-    shape = sign.shape
-    tex = spec.add_texture(name=sign.texture_name, type=mujoco.mjtTexture.mjTEXTURE_2D)
+    add_plate(spec, sign.name, sign.shape, sign.base_pos_m, sign.yaw_rad, sign.bottom_height_m, texture_rgb)
+
+
+def add_plate(spec: mujoco.MjSpec, name: str, shape: SignShape, base_pos_m: tuple[float, float, float], yaw_rad: float,
+              bottom_height_m: float, texture_rgb: np.ndarray) -> None:
+    """A textured plate of any outline on a post (a sign, or a sign-like board that is none), as a
+    static body named `name`; the frame, yaw and texture as for `add_sign`."""
+    tex = spec.add_texture(name=f"{name}/texture", type=mujoco.mjtTexture.mjTEXTURE_2D)
     set_texture_data(tex, texture_rgb)
-    mat = spec.add_material(name=f"{sign.name}/material")
-    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = sign.texture_name
+    mat = spec.add_material(name=f"{name}/material")
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}/texture"
     verts, faces, uv = _face_mesh(shape)
     spec.add_mesh(
-        name=f"{sign.name}/face_mesh",
+        name=f"{name}/face_mesh",
         uservert=verts.ravel().tolist(),
         userface=faces.ravel().tolist(),
         usertexcoord=uv.ravel().tolist(),
     )
-    c, s = math.cos(sign.yaw_rad / 2), math.sin(sign.yaw_rad / 2)
-    body = spec.worldbody.add_body(name=sign.name, pos=list(sign.base_pos_m), quat=[c, 0, 0, s])
-    centre_z = sign.bottom_height_m + shape.height_m / 2
+    c, s = math.cos(yaw_rad / 2), math.sin(yaw_rad / 2)
+    body = spec.worldbody.add_body(name=name, pos=list(base_pos_m), quat=[c, 0, 0, s])
+    centre_z = bottom_height_m + shape.height_m / 2
     post_top_m = centre_z
     body.add_geom(
-        name=f"{sign.name}/post", type=mujoco.mjtGeom.mjGEOM_BOX,
+        name=f"{name}/post", type=mujoco.mjtGeom.mjGEOM_BOX,
         size=[POST_HALF_WIDTH_M, POST_HALF_WIDTH_M, post_top_m / 2], pos=[0, 0, post_top_m / 2],
         rgba=[0.55, 0.56, 0.58, 1], contype=0, conaffinity=0,
     )
     body.add_geom(
-        name=sign.face_geom, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{sign.name}/face_mesh",
-        material=f"{sign.name}/material", pos=[-POST_HALF_WIDTH_M, 0, centre_z],
+        name=f"{name}/face", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{name}/face_mesh",
+        material=f"{name}/material", pos=[-POST_HALF_WIDTH_M, 0, centre_z],
         contype=0, conaffinity=0,
     )
 

@@ -182,6 +182,40 @@ def make_speed_limit_sign(limit_kmh: int = 50, width_px: int = 400,
     return img
 
 
+def hexagon_outline(width: float) -> np.ndarray:
+    """A regular hexagon `width` across its corners, corners left and right, flats on top and bottom:
+    (6, 2) points (x right, y down) centred on the origin; its height is width * sqrt(3) / 2."""
+    angles = np.deg2rad(np.arange(0, 360, 60))
+    return np.column_stack([width / 2 * np.cos(angles), width / 2 * np.sin(angles)])
+
+
+def make_disc_advert(word: str = "CAFE", size_px: int = 512) -> np.ndarray:
+    """A red round roadside advert with a white ring and a white word: red and white like a stop
+    sign, of about its size, and no traffic sign at all. RGB uint8, (size_px, size_px, 3), the
+    disc touching the image edges; grey (128) outside it."""
+    s = float(size_px)
+    img = np.full((size_px, size_px, 3), GREY, np.uint8)
+    angles = np.deg2rad(np.linspace(0, 360, 96, endpoint=False))
+    ring = np.column_stack([np.cos(angles), np.sin(angles)])
+    for radius, colour in ((s / 2, RED), (0.46 * s, WHITE), (0.43 * s, RED)):
+        _fill(img, s / 2 + radius * ring, colour)
+    _text(img, word, WHITE, (s / 2, s / 2), height=0.25 * s, max_width=0.66 * s, weight=0.16)
+    return img
+
+
+def make_hexagon_advert(word: str = "PIZZA", width_px: int = 512) -> np.ndarray:
+    """A red hexagonal shop board with a white border and a white word (corners left and right):
+    RGB uint8, (round(width_px * sqrt(3) / 2), width_px, 3), the hexagon touching the image edges."""
+    w = float(width_px)
+    h = round(w * np.sqrt(3.0) / 2.0)
+    img = np.full((h, width_px, 3), GREY, np.uint8)
+    centre = np.array([w / 2, h / 2])
+    for scale, colour in ((1.0, RED), (0.93, WHITE), (0.88, RED)):
+        _fill(img, centre + hexagon_outline(w * scale), colour)
+    _text(img, word, WHITE, (w / 2, h / 2), height=0.22 * h, max_width=0.62 * w, weight=0.16)
+    return img
+
+
 SIGN_TEXTURE_MAKERS: dict[str, Callable[[], np.ndarray]] = {
     "stop_sign": make_stop_sign, "yield": make_yield_sign, "speed_limit": make_speed_limit_sign}
 CLEAN_TEXTURE_FILES: dict[str, str] = {

@@ -354,8 +354,8 @@ def test_study_stack_sign_height_is_a_parameter():
 
 # ---- privileged data -----------------------------------------------------------------------
 
-def test_only_the_autopilot_is_built_with_the_map():
-    assert [name for name in POLICIES.names() if POLICIES.get(name).uses_map] == ["autopilot"]
+def test_only_the_autopilot_and_the_map_prior_are_built_with_the_map():
+    assert [name for name in POLICIES.names() if POLICIES.get(name).uses_map] == ["autopilot", "map_prior"]
 
 
 def test_an_observation_carries_no_map_data():

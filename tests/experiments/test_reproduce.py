@@ -112,6 +112,20 @@ def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tm
     assert any(f"against {measured:.1f} m/s² at full brake (measured, road friction 0.9)" in line for line in lines)
 
 
+def test_findings_do_not_count_a_run_that_had_no_stop_to_make_as_a_failure(tmp_path):
+    from avsim.experiments.report import Cells, findings
+    from avsim.experiments.spec import load_experiment
+
+    path = tmp_path / "table3_stop_positions.toml"
+    path.write_text(TINY_TABLE3)
+    experiment = load_experiment(path)
+    drove_through = {"outcome": "drove_through", "stop_required": False, "speed_at_brake_mps": None,
+                     "dist_at_brake_m": None, "config": experiment.cells[1].config.to_dict()}
+    records = [{"experiment": "table3_stop_positions", "cell": "attacked sign, side_camera", "seed": 0, "status": "ok",
+                "result": drove_through, "trace": {}}]
+    assert not any("attacked sign, side_camera" in line for line in findings(Cells(records), [experiment]))
+
+
 def test_a_compare_report_sets_each_cell_beside_the_other_experiments_same_named_cell(tmp_path):
     from avsim.experiments.report import Cells, compare_section
     from avsim.experiments.spec import load_experiment

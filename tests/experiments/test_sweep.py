@@ -84,6 +84,11 @@ def test_a_toml_dotted_grid_key_is_the_same_as_a_quoted_one(tmp_path):
     assert quoted.grid == dotted.grid == (("scenario.speed_kmh", (30.0, 60.0)),)
 
 
+def test_a_grid_may_take_the_junction_without_a_stop_sign(tmp_path):
+    sweep = load_sweep(_write(tmp_path, '[grid]\n"scenario.sign" = ["clean", "none"]\n'))
+    assert [run.config.scenario.stop_required for run in sweep.runs()] == [True, False]
+
+
 # ---- bad files: one line naming the file and the key -----------------------------------------
 
 @pytest.mark.parametrize("text, expected", [

@@ -1,0 +1,377 @@
+"""`avsim leaderboard`: every defence against the attacks, and against roads that need no stop.
+
+A leaderboard file (`experiments/leaderboards/defences.toml`) declares the whole matrix as data, so a new
+defence or a new texture is an edit of the file, never of code:
+
+    title = "..."
+    [defaults]                      # every run, as in experiment files (no scenario.seed)
+    [vary]                          # optional: drawn per seed, as in experiment files
+    [conditions.clean]              # the attacks every defence faces where a stop is required:
+    scenario = { sign = "clean" }   #   "clean" and "strongest" (the strongest non-adaptive attack)
+    [conditions.strongest]
+    note = "..."                    #   shown in the report (e.g. that a texture is a placeholder)
+    scenario = { sign = "yang" }
+    [[defences]]                    # one row each
+    name = "purify_jpeg"
+    about = "..."                   # one line for the report
+    policy = { name = "baseline" }  # the defence: any config sections
+    perception = { purify = "jpeg" }
+    adaptive = { scenario = { sign = "yang" } }    # its own adaptive attack (the third condition)
+    adaptive_note = "..."
+    [[places]]                      # towns and placements of the runs that require a stop
+    town = "town07"
+    placement = "standard"
+    seeds = 10                      # scenario.seed = 0 .. seeds-1
+    quick_seeds = 1                 # with --quick (0: left out)
+    [[availability]]                # scenarios where no stop is required (phantom braking)
+    name = "no stop sign"
+    scenario = { sign = "none" }
+    seeds = 5
+    quick_seeds = 1
+    defences = ["map_prior"]        # optional: only these defences run it
+
+A run's config is `SimConfig()`, then [defaults], the place (town, placement), the defence's
+keys, then the condition's (or the availability scenario's), then the seed and its [vary]
+draw. Every run is checked when the file is loaded, before anything runs: config keys and
+ranges, registry names, sign textures, and that every safety run requires a stop and no
+availability run does. Runs with the same config (a placeholder adaptive texture that equals
+the strongest attack) run once and count once per defence.
+
+`run_leaderboard` runs the unique configs through the sweep machinery (`resumable`: a pool or
+Ray, one fsynced line per run, `--resume`), then writes into its folder:
+    leaderboard.toml   the file as it was run
+    results.jsonl      one record per unique config (`avsim.experiments.batch`)
+    manifest.json      command, workers, wall time, runs, failures, versions
+    leaderboard.md     the tables (`avsim.experiments.leaderboard_report`)
+    leaderboard.png    safety against availability, one point per defence, the Pareto front marked
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import shutil
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from avsim.config import SimConfig, with_overrides
+from avsim.errors import ConfigError, RunsFailedError
+from avsim.experiments.batch import RunSpec, check_backend
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
+                                   read_run_file, reject_seed)
+from avsim.metrics import write_json_atomic
+
+TOP_LEVEL_KEYS = ("title", "defaults", "vary", "conditions", "defences", "places", "availability")
+CONDITIONS = ("clean", "strongest", "adaptive")  # "adaptive" is each defence's own
+SAFETY, AVAILABILITY = "safety", "availability"
+DEFAULT_FILE = Path(__file__).resolve().parents[2] / "experiments" / "leaderboards" / "defences.toml"
+
+
+@dataclass(frozen=True)
+class Condition:
+    """Config overrides for one attack condition, and a note for the report."""
+
+    overrides: dict[str, Any]
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Defence:
+    name: str
+    about: str
+    overrides: dict[str, Any]
+    adaptive: Condition
+
+
+@dataclass(frozen=True)
+class Place:
+    town: str
+    placement: str
+    seeds: int
+    quick_seeds: int
+
+    @property
+    def label(self) -> str:
+        return f"{self.town} {self.placement}"
+
+
+@dataclass(frozen=True)
+class Availability:
+    name: str
+    overrides: dict[str, Any]
+    seeds: int
+    quick_seeds: int
+    defences: tuple[str, ...] | None  # None: every defence
+
+
+@dataclass(frozen=True)
+class LeaderboardRun:
+    """One run of the matrix: which defence, which side of the board and where, with its config.
+
+    kind: SAFETY (condition is one of CONDITIONS, place a Place label) or AVAILABILITY
+    (condition is the scenario's name, place its town and placement).
+    """
+
+    defence: str
+    kind: str
+    condition: str
+    place: str
+    seed: int
+    config: SimConfig
+
+    @property
+    def label(self) -> str:
+        return f"{self.defence} | {self.condition} | {self.place}"
+
+
+@dataclass(frozen=True)
+class Leaderboard:
+    """A loaded leaderboard file (module docstring)."""
+
+    path: Path
+    title: str
+    base: SimConfig
+    vary: tuple[tuple[str, float, float], ...]
+    conditions: dict[str, Condition]  # "clean", "strongest"
+    defences: tuple[Defence, ...]
+    places: tuple[Place, ...]
+    availability: tuple[Availability, ...]
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+    def condition(self, defence: Defence, name: str) -> Condition:
+        return defence.adaptive if name == "adaptive" else self.conditions[name]
+
+    def runs(self, quick: bool = False) -> list[LeaderboardRun]:
+        """Every run of the matrix (with `quick`, each place's and scenario's quick_seeds), defence by defence."""
+        runs = []
+        for defence in self.defences:
+            for place in self.places:
+                for name in CONDITIONS:
+                    config = self.compose(place_overrides(place), defence.overrides, self.condition(defence, name).overrides)
+                    for seed in range(place.quick_seeds if quick else place.seeds):
+                        runs.append(LeaderboardRun(defence.name, SAFETY, name, place.label, seed,
+                                                   config_at_seed(config, self.vary, seed)))
+            for scenario in self.availability:
+                if scenario.defences is not None and defence.name not in scenario.defences:
+                    continue
+                config = self.compose({}, defence.overrides, scenario.overrides)
+                where = f"{config.scenario.town} {config.scenario.placement}"
+                for seed in range(scenario.quick_seeds if quick else scenario.seeds):
+                    runs.append(LeaderboardRun(defence.name, AVAILABILITY, scenario.name, where, seed,
+                                               config_at_seed(config, self.vary, seed)))
+        return runs
+
+    def compose(self, *layers: Mapping[str, Any]) -> SimConfig:
+        merged: dict[str, Any] = {}
+        for layer in layers:
+            merged = deep_merge(merged, layer)
+        return with_overrides(self.base, merged)
+
+
+def unique_specs(leaderboard: Leaderboard, runs: list[LeaderboardRun]) -> list[RunSpec]:
+    """One batch spec per distinct config, labelled by the first run that has it."""
+    specs: dict[str, RunSpec] = {}
+    for run in runs:
+        spec = RunSpec(leaderboard.name, run.label, run.seed, run.config)
+        specs.setdefault(spec.spec_hash, spec)
+    return list(specs.values())
+
+
+def place_overrides(place: Place) -> dict[str, Any]:
+    return {"scenario": {"town": place.town, "placement": place.placement}}
+
+
+# ---- loading ---------------------------------------------------------------------------------
+
+def load_leaderboard(path: str | Path = DEFAULT_FILE) -> Leaderboard:
+    """Read and check a leaderboard file, every run of it (module docstring)."""
+    path = Path(path)
+    raw, title, _ = read_run_file(path, "leaderboard", TOP_LEVEL_KEYS, 1)
+    with located(path, "[defaults]"):
+        defaults = as_table(raw.get("defaults", {}), "defaults")
+        reject_seed(defaults)
+        base = with_overrides(SimConfig(), defaults)
+    with located(path, "[vary]"):
+        vary = parse_vary(raw.get("vary", {}))
+    with located(path, "[conditions]"):
+        conditions = _parse_conditions(raw.get("conditions"))
+    defences = tuple(_parse_defence(path, index, item) for index, item in enumerate(_array(path, raw, "defences")))
+    _unique(path, "defences", [d.name for d in defences])
+    places = tuple(_parse_place(path, index, item) for index, item in enumerate(_array(path, raw, "places")))
+    _unique(path, "places", [p.label for p in places])
+    availability = tuple(_parse_availability(path, index, item, {d.name for d in defences})
+                         for index, item in enumerate(raw.get("availability", [])))
+    _unique(path, "availability", [a.name for a in availability])
+    board = Leaderboard(path, title, base, vary, conditions, defences, places, availability)
+    _check_runs(board)
+    return board
+
+
+def _parse_conditions(raw: Any) -> dict[str, Condition]:
+    table = as_table(raw if raw is not None else {}, "conditions")
+    missing = [name for name in CONDITIONS[:2] if name not in table]
+    if missing:
+        raise ConfigError(f"no [conditions.{missing[0]}]; give [conditions.clean] and [conditions.strongest] (the "
+                          f"strongest non-adaptive attack), each a table of config keys")
+    unknown = sorted(set(table) - set(CONDITIONS[:2]))
+    if unknown:
+        raise ConfigError(f"unknown condition '{unknown[0]}'; the conditions are clean and strongest (each defence "
+                          f"declares its own adaptive one)")
+    return {name: _condition(table[name], f"conditions.{name}") for name in CONDITIONS[:2]}
+
+
+def _condition(raw: Any, where: str) -> Condition:
+    overrides = as_table(raw, where)
+    note = overrides.pop("note", "")
+    if not isinstance(note, str):
+        raise ConfigError(f"'{where}.note' must be a string, got {note!r}")
+    reject_seed(overrides)
+    return Condition(overrides, note)
+
+
+def _parse_defence(path: Path, index: int, raw: Any) -> Defence:
+    with located(path, f"defences[{index}]"):
+        overrides = as_table(raw, f"defences[{index}]")
+        name = _name(overrides.pop("name", None))
+    with located(path, f'defences[{index}] "{name}"'):
+        about = overrides.pop("about", "")
+        adaptive_note = overrides.pop("adaptive_note", "")
+        if not isinstance(about, str) or not isinstance(adaptive_note, str):
+            raise ConfigError("'about' and 'adaptive_note' must be strings")
+        if "adaptive" not in overrides:
+            raise ConfigError("no 'adaptive' table: give the defence's own adaptive attack as config keys, e.g. "
+                              "adaptive = { scenario = { sign = \"adaptive\" } }")
+        adaptive = _condition(overrides.pop("adaptive"), "adaptive")
+        reject_seed(overrides)
+        return Defence(name, about, overrides, Condition(adaptive.overrides, adaptive_note))
+
+
+def _parse_place(path: Path, index: int, raw: Any) -> Place:
+    with located(path, f"places[{index}]"):
+        table = as_table(raw, f"places[{index}]")
+        unknown = sorted(set(table) - {"town", "placement", "seeds", "quick_seeds"})
+        if unknown:
+            raise ConfigError(f"unknown key '{unknown[0]}'; a place has town, placement, seeds and quick_seeds")
+        town, placement = table.get("town"), table.get("placement")
+        if not isinstance(town, str) or not isinstance(placement, str):
+            raise ConfigError("'town' and 'placement' must be names, e.g. town = \"town07\", placement = \"standard\"")
+        return Place(town, placement, *_seeds(table))
+
+
+def _parse_availability(path: Path, index: int, raw: Any, defence_names: set[str]) -> Availability:
+    with located(path, f"availability[{index}]"):
+        overrides = as_table(raw, f"availability[{index}]")
+        name = _name(overrides.pop("name", None))
+    with located(path, f'availability[{index}] "{name}"'):
+        seeds = _seeds(overrides)
+        for key in ("seeds", "quick_seeds"):
+            overrides.pop(key, None)
+        only = overrides.pop("defences", None)
+        if only is not None:
+            if not isinstance(only, list) or not all(isinstance(n, str) for n in only) or not only:
+                raise ConfigError(f"'defences' must be a non-empty list of defence names, got {only!r}")
+            unknown = sorted(set(only) - defence_names)
+            if unknown:
+                raise ConfigError(f"'defences' names '{unknown[0]}', which is no defence of this file")
+        reject_seed(overrides)
+        return Availability(name, overrides, *seeds, tuple(only) if only is not None else None)
+
+
+def _seeds(table: Mapping[str, Any]) -> tuple[int, int]:
+    seeds, quick = table.get("seeds", 1), table.get("quick_seeds", 0)
+    if type(seeds) is not int or seeds < 1 or type(quick) is not int or not 0 <= quick <= seeds:
+        raise ConfigError(f"'seeds' must be an integer >= 1 and 'quick_seeds' one in 0 .. seeds, got {seeds!r} and {quick!r}")
+    return seeds, quick
+
+
+def _name(value: Any) -> str:
+    if not isinstance(value, str) or not value.strip() or "|" in value:
+        raise ConfigError(f"'name' must be a non-empty string without '|', got {value!r}")
+    return value
+
+
+def _array(path: Path, raw: Mapping[str, Any], key: str) -> list[Any]:
+    items = raw.get(key)
+    if not isinstance(items, list) or not items:
+        raise ConfigError(f"{path}: no [[{key}]]; add at least one")
+    return items
+
+
+def _unique(path: Path, key: str, names: list[str]) -> None:
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ConfigError(f"{path}: [[{key}]] names '{repeated[0]}' twice; each needs its own")
+
+
+def _check_runs(board: Leaderboard) -> None:
+    """Every run's config (both seed counts give the same configs up to the seed), its registry
+    names and sign texture, and whether it requires a stop."""
+    for run in board.runs():
+        if run.seed:
+            continue  # the same config as seed 0 but for the seed and its [vary] draw, both checked by config_at_seed
+        with located(board.path, f'run "{run.label}"'):
+            check_run_names(run.config)
+            required = run.config.scenario.stop_required
+            if run.kind == SAFETY and not required:
+                raise ConfigError("this safety run has no stop to make (no stop sign facing the car); an attack "
+                                  "condition must keep the junction's stop sign")
+            if run.kind == AVAILABILITY and required:
+                raise ConfigError("this availability scenario requires a stop (a stop sign facing the car); give it "
+                                  "scenario.sign = \"none\" or a stop sign turned to the cross street")
+
+
+# ---- running ---------------------------------------------------------------------------------
+
+def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
+                    resume: bool = False, progress: bool = True, backend: str = "local",
+                    address: str | None = None) -> Path:
+    """Run the board's matrix into `out_dir` (module docstring); returns `out_dir`."""
+    from avsim.experiments.leaderboard_report import write_leaderboard_report
+    from avsim.experiments.reproduce import _versions, resolve_workers
+
+    check_backend(backend, address)
+    out = Path(out_dir)
+    results_path = out / RESULTS_FILE
+    existing = existing_records(results_path, resume)
+    workers = resolve_workers(workers, address)
+    runs = board.runs(quick)
+    specs = unique_specs(board, runs)
+    options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
+               f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
+    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)])
+
+    started = time.perf_counter()
+    started_at = dt.datetime.now().astimezone()
+    out.mkdir(parents=True, exist_ok=True)
+    if board.path.resolve() != (out / "leaderboard.toml").resolve():
+        shutil.copy2(board.path, out / "leaderboard.toml")
+    records, ran = run_resumable(specs, results_path, existing, resume_command=f"{command} --resume", workers=workers,
+                                 progress=progress, description="leaderboard", backend=backend, address=address)
+    manifest = {
+        "command": command + (" --resume" if resume else ""),
+        "started_at": started_at.isoformat(timespec="seconds"),
+        "title": board.title,
+        "wall_s": round(time.perf_counter() - started, 1),
+        "backend": backend,
+        "address": address,
+        "workers": workers,
+        "quick": quick,
+        "runs": len(runs),
+        "configs": len(specs),
+        "ran": ran,
+        "reused": len(specs) - ran,
+        "failed": sum(1 for r in records if r["status"] == "failed"),
+        "versions": _versions(),
+    }
+    write_json_atomic(out / "manifest.json", manifest)
+    write_leaderboard_report(out, board, runs, records, manifest)
+    if records and manifest["failed"] == len(records):
+        first = next(r["error"] for r in records if r["status"] == "failed")
+        raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); see {out / 'leaderboard.md'}")
+    return out

@@ -1,0 +1,96 @@
+"""A batch of runs into one folder's `results.jsonl` that survives crashes and resumes: what
+`avsim sweep` and `avsim leaderboard` share.
+
+    existing = existing_records(out / RESULTS_FILE, resume)    # first: refuses before anything is written
+    ...                                                         # the caller's own files (its input, a manifest)
+    records, ran = run_resumable(specs, out / RESULTS_FILE, existing, resume_command="avsim sweep ... --resume",
+                                 workers=2, description="sweep")
+
+Each finished run is one fsynced line (`avsim.experiments.results_file`). With `resume`, runs
+whose config hash already has an `ok` record are not run again; failed ones are. Once the
+batch is over the file is rewritten in the order of `specs`, the same every time, with the
+records of runs no longer asked for kept after them. A file killed at any moment, even
+mid-write (a torn last line is dropped before new records are appended), resumes to the same
+file as a batch never stopped, `wall_s` aside. Ctrl-C ends the batch with `Interrupted`, naming
+the finished runs and the command that resumes it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from avsim.errors import ConfigError, Interrupted
+from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
+
+RESULTS_FILE = "results.jsonl"
+Record = dict[str, Any]
+
+
+def existing_records(results_path: Path, resume: bool) -> list[Record]:
+    """The records already in `results_path`; a one-line ConfigError when there are some and
+    `resume` is off, or the file is not avsim's or has a corrupt line (`read_records`)."""
+    existing = read_records(results_path)
+    if existing and not resume:
+        raise ConfigError(f"{results_path} already holds {len(existing)} runs; pass --resume to run only the "
+                          f"missing ones, or choose another --out")
+    return existing
+
+
+def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequence[Record], *, resume_command: str,
+                  workers: int | None, progress: bool = True, description: str = "runs", backend: str = "local",
+                  address: str | None = None, decorate: Callable[[Record], Record] | None = None) -> tuple[list[Record], int]:
+    """Run the specs that `existing` has no ok record of; returns (one record per spec, in spec
+    order; how many were run). The specs' config hashes must differ.
+
+    decorate: applied to each new record before it is written (e.g. to add a sweep's grid point).
+    The other options go to `avsim.experiments.batch.run_batch`; the batch folder is
+    `results_path`'s.
+    """
+    hashes = [spec.spec_hash for spec in specs]
+    if len(set(hashes)) != len(hashes):
+        raise ValueError("two specs share a config hash; run each config once")
+    wanted = set(hashes)
+    finished = {r["spec_hash"]: r for r in existing if r.get("status") == "ok" and r.get("spec_hash") in wanted}
+    todo = [spec for spec in specs if spec.spec_hash not in finished]
+    results_path.parent.mkdir(parents=True, exist_ok=True)
+    if _torn_tail(results_path):
+        rewrite(results_path, existing)  # else the next record would be glued onto the torn line
+    writer = JsonlWriter(results_path)
+    ran: dict[str, Record] = {}
+
+    def on_record(record: Record) -> None:
+        if decorate is not None:
+            record = decorate(record)
+        ran[record["spec_hash"]] = record
+        writer.append(record)
+
+    try:
+        run_batch(todo, workers=workers, root=results_path.parent, on_record=on_record, progress=progress,
+                  description=description, backend=backend, address=address)
+    except KeyboardInterrupt:
+        raise Interrupted(resume_hint(resume_command, results_path, len(finished) + len(ran))) from None
+    records = [ran.get(h) or finished[h] for h in hashes]
+    others = [r for r in existing if r.get("spec_hash") not in wanted]
+    rewrite(results_path, records + others)
+    return records, len(todo)
+
+
+def resume_hint(command: str, results_path: Path, finished: int) -> str:
+    """What an interrupted batch kept, and the command that finishes it."""
+    if not finished:
+        return f"no run had finished; run it again with: {command}"
+    return f"{finished} finished run{'s are' if finished != 1 else ' is'} in {results_path}; resume with: {command}"
+
+
+def _torn_tail(path: Path) -> bool:
+    """True when `path` ends in a line without its newline: a write cut short by a crash."""
+    try:
+        with path.open("rb") as f:
+            f.seek(-1, os.SEEK_END)
+            return f.read(1) != b"\n"
+    except OSError:  # no file, or an empty one
+        return False

@@ -1,0 +1,177 @@
+"""`avsim leaderboard`: the shipped file's matrix, the file format's checks, and a small board run
+end to end (oracle perception, short approaches) through the resumable sweep machinery."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from avsim.cli import main
+from avsim.errors import ConfigError
+from avsim.experiments.leaderboard import (AVAILABILITY, DEFAULT_FILE, SAFETY, load_leaderboard, run_leaderboard,
+                                           unique_specs)
+from avsim.experiments.leaderboard_report import Results, pareto_front, rows
+from avsim.experiments.results_file import read_records
+
+NEW_DEFENCES = ("temporal_vote", "map_prior", "ensemble_or", "ensemble_and", "purify_jpeg", "purify_median")
+STUDY_ROWS = ("adjusted", "side_camera", "combined", "study_stack")
+
+TINY = """
+title = "tiny"
+[defaults]
+scenario = { town = "town07", placement = "standard", speed_kmh = 85, start_speed_kmh = 85, start_dist_m = 70 }
+perception = { kind = "oracle" }
+[vary]
+scenario = { sun_elevation_deg = [30, 70] }
+[conditions.clean]
+scenario = { sign = "clean" }
+[conditions.strongest]
+note = "stand-in"
+scenario = { sign = "yang" }
+[[defences]]
+name = "baseline"
+policy = { name = "baseline" }
+adaptive = { scenario = { sign = "yang" } }
+adaptive_note = "placeholder"
+[[defences]]
+name = "map_prior"
+policy = { name = "map_prior" }
+adaptive = { scenario = { sign = "yang", map_error = "missing_stop" } }
+[[places]]
+town = "town07"
+placement = "standard"
+seeds = 2
+quick_seeds = 1
+[[availability]]
+name = "no stop sign"
+scenario = { sign = "none" }
+seeds = 1
+quick_seeds = 1
+[[availability]]
+name = "mapped stop absent"
+scenario = { sign = "none", map_error = "phantom_stop" }
+seeds = 1
+defences = ["map_prior"]
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "board.toml"
+    path.write_text(text)
+    return path
+
+
+# ---- the shipped leaderboard ---------------------------------------------------------------------
+
+def test_the_shipped_board_has_every_defence_and_the_study_rows_and_checks_every_run():
+    board = load_leaderboard(DEFAULT_FILE)
+    names = [d.name for d in board.defences]
+    assert set(NEW_DEFENCES) | set(STUDY_ROWS) | {"baseline"} <= set(names)
+    town07 = next(p for p in board.places if p.label == "town07 standard")
+    assert town07.seeds >= 10
+    runs = board.runs()
+    assert {r.kind for r in runs} == {SAFETY, AVAILABILITY}
+    assert all(r.config.scenario.stop_required for r in runs if r.kind == SAFETY)
+    assert not any(r.config.scenario.stop_required for r in runs if r.kind == AVAILABILITY)
+    # Only map readers face the map's phantom stop; nobody else reads the map.
+    phantom = {r.defence for r in runs if r.config.scenario.map_error == "phantom_stop"}
+    assert phantom == {"map_prior", "autopilot"}
+
+
+def test_the_quick_subset_is_part_of_the_full_board_so_a_resume_reuses_it():
+    board = load_leaderboard(DEFAULT_FILE)
+    quick = {s.spec_hash for s in unique_specs(board, board.runs(quick=True))}
+    full = {s.spec_hash for s in unique_specs(board, board.runs())}
+    assert quick < full
+
+
+def test_a_placeholder_adaptive_attack_runs_once():
+    board = load_leaderboard(DEFAULT_FILE)
+    runs = [r for r in board.runs() if r.defence == "purify_jpeg" and r.kind == SAFETY]
+    assert len(unique_specs(board, runs)) == len(runs) * 2 // 3  # adaptive = strongest today
+    runs = [r for r in board.runs() if r.defence == "side_camera" and r.kind == SAFETY]
+    assert len(unique_specs(board, runs)) == len(runs)  # its adaptive texture exists
+
+
+# ---- the format's checks -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("change, message", [
+    (("adaptive = { scenario = { sign = \"yang\", map_error = \"missing_stop\" } }\n", ""), "no 'adaptive' table"),
+    (("[conditions.strongest]\nnote = \"stand-in\"\nscenario = { sign = \"yang\" }", "[conditions.strongest]\nscenario = { sign = \"none\" }"),
+     "has no stop to make"),
+    (("scenario = { sign = \"none\" }\nseeds = 1\nquick_seeds = 1", "scenario = { sign = \"clean\" }\nseeds = 1\nquick_seeds = 1"),
+     "requires a stop"),
+    (("defences = [\"map_prior\"]", "defences = [\"nobody\"]"), "no defence of this file"),
+    (("name = \"map_prior\"", "name = \"baseline\""), "names 'baseline' twice"),
+    (("seeds = 2\nquick_seeds = 1", "seeds = 2\nquick_seeds = 3"), "quick_seeds"),
+    (("policy = { name = \"map_prior\" }", "policy = { name = \"map_priors\" }"), "policy"),
+    (("scenario = { sign = \"yang\" }\n[[defences]]", "scenario = { sign = \"nosuchtexture\" }\n[[defences]]"),
+     "unknown sign texture"),
+    (("[conditions.clean]", "[conditions.dirty]\nscenario = {}\n[conditions.clean]"), "unknown condition 'dirty'"),
+])
+def test_every_run_is_checked_when_the_file_loads(tmp_path, change, message):
+    old, new = change
+    assert old in TINY
+    with pytest.raises(ConfigError, match=message):
+        load_leaderboard(write(tmp_path, TINY.replace(old, new, 1)))
+
+
+# ---- a small board, end to end -------------------------------------------------------------------
+
+def test_a_small_board_runs_writes_its_report_and_resumes_without_running_again(tmp_path, capsys):
+    path = write(tmp_path, TINY)
+    out = tmp_path / "out"
+    assert main(["leaderboard", str(path), "--out", str(out), "--quick", "--workers", "1", "--no-progress"]) == 0
+    assert {"leaderboard.md", "leaderboard.png", "results.jsonl", "manifest.json", "leaderboard.toml"} <= {p.name for p in out.iterdir()}
+    records = read_records(out / "results.jsonl")
+    manifest = json.loads((out / "manifest.json").read_text())
+    # baseline: clean, yang (its adaptive is the same config), no sign; map_prior: clean, yang, yang without map, no sign.
+    assert manifest["runs"] == 8 and manifest["configs"] == len(records) == 7 and manifest["failed"] == 0
+    report = (out / "leaderboard.md").read_text()
+    assert "| baseline |" in report or "| **baseline** |" in report
+    assert "placeholder" in report  # the adaptive note
+
+    # The full board reuses the quick runs; running it again runs nothing.
+    assert main(["leaderboard", str(path), "--out", str(out), "--workers", "1", "--no-progress", "--resume"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["reused"] == 7 and manifest["ran"] == manifest["configs"] - 7
+    assert main(["leaderboard", str(path), "--out", str(out), "--workers", "1", "--no-progress", "--resume"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["ran"] == 0
+    capsys.readouterr()
+
+    board = load_leaderboard(path)
+    table = {row.name: row for row in rows(board, Results(board.runs(), read_records(out / "results.jsonl")))}
+    # The map prior stops for the mapped stop that is not there: its availability cost.
+    assert table["map_prior"].phantom == (1, 2) and table["baseline"].phantom == (0, 1)
+    # With the oracle nothing hides the sign; without a mapped stop the camera still stops the map prior.
+    assert table["baseline"].attacked == (2, 2) and table["map_prior"].attacked == (4, 4)
+    assert table["baseline"].frames_per_step == 0  # the oracle runs no network
+    assert pareto_front(table.values()) == {"baseline"}
+
+
+def test_an_existing_board_folder_is_not_overwritten_without_resume(tmp_path):
+    path = write(tmp_path, TINY.replace("quick_seeds = 1", "quick_seeds = 0"))
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copy(path, out / "results.jsonl")  # anything there that is not avsim's
+    with pytest.raises(ConfigError, match="not an avsim results file"):
+        run_leaderboard(load_leaderboard(path), out, quick=True, workers=1, progress=False)
+
+
+@pytest.mark.slow
+def test_the_quick_leaderboard_runs_every_defence(tmp_path, capsys):
+    """`avsim leaderboard --quick`: every defence of the shipped board, Town07 standard, one seed, with
+    the learned detector (and COCO for the ensembles)."""
+    out = tmp_path / "board"
+    assert main(["leaderboard", "--quick", "--out", str(out), "--workers", "2", "--no-progress"]) == 0
+    capsys.readouterr()
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["failed"] == 0
+    board = load_leaderboard(DEFAULT_FILE)
+    table = {row.name: row for row in rows(board, Results(board.runs(quick=True), read_records(out / "results.jsonl")))}
+    assert set(table) == {d.name for d in board.defences}
+    for row in table.values():
+        assert row.attacked[1] >= 1 and row.clean[1] == 1 and row.phantom[1] >= 1
+    assert pareto_front(table.values())
+    assert (out / "leaderboard.png").stat().st_size > 10_000

@@ -1,0 +1,68 @@
+"""The ensemble perception: both networks on one frame, every detection tagged with its network,
+and its OR and AND fusion (on hand-made detections; the networks themselves in the closed loop)."""
+
+import numpy as np
+import pytest
+
+from avsim.config import PerceptionConfig
+from avsim.errors import ConfigError
+from avsim.perception.base import Detection
+from avsim.perception.ensemble import ENSEMBLE_MEMBERS, EnsembleDetector, centres_inside_each_other, fuse_and
+from avsim.perception.factory import networks_per_frame
+
+IMAGE = np.zeros((48, 64, 3), np.uint8)
+
+
+def box(x0, y0, x1, y1, conf=0.8, cls="stop_sign", truncated=False) -> Detection:
+    return Detection(cls, conf, (x0, y0, x1, y1), "front", truncated)
+
+
+class Fixed:
+    """A frame detector that reports fixed detections and remembers what it was asked."""
+
+    def __init__(self, *detections: Detection) -> None:
+        self.detections = list(detections)
+        self.calls = []
+
+    def detect(self, image_rgb, camera, *, region_px=None):
+        self.calls.append((image_rgb, camera, region_px))
+        return list(self.detections)
+
+
+def test_boxes_frame_one_object_when_each_centre_lies_inside_the_other():
+    assert centres_inside_each_other(box(10, 10, 30, 30), box(12, 11, 33, 31))
+    assert not centres_inside_each_other(box(10, 10, 30, 30), box(25, 25, 45, 45))
+    assert not centres_inside_each_other(box(0, 0, 100, 100), box(10, 10, 20, 20))  # a big box swallowing a small one
+
+
+def test_or_reports_both_networks_tagged_most_confident_first():
+    own, coco = Fixed(box(10, 10, 30, 30, 0.6)), Fixed(box(40, 5, 60, 25, 0.7), box(0, 0, 5, 5, 0.2, cls="car"))
+    found = EnsembleDetector({"detector": own, "coco": coco}, "or").detect(IMAGE, "front", region_px=(1, 2, 3, 4))
+    assert [(d.source, d.confidence) for d in found] == [("coco", 0.7), ("detector", 0.6), ("coco", 0.2)]
+    # Both networks saw the same frame and region.
+    assert own.calls[0][0] is coco.calls[0][0] is IMAGE and own.calls[0][2] == coco.calls[0][2] == (1, 2, 3, 4)
+
+
+def test_and_reports_a_stop_sign_only_where_both_see_it_at_the_lower_confidence_with_the_own_box():
+    own = Fixed(box(10, 10, 30, 30, 0.9), box(40, 5, 60, 25, 0.95), box(0, 40, 8, 48, 0.7, cls="yield"))
+    coco = Fixed(box(11, 9, 31, 31, 0.55), box(12, 10, 29, 30, 0.4), box(100, 100, 120, 120, 0.99))
+    found = EnsembleDetector({"detector": own, "coco": coco}, "and").detect(IMAGE, "front")
+    stops = [d for d in found if d.class_name == "stop_sign"]
+    assert len(stops) == 1  # the 0.95 box has no COCO partner; COCO's 0.99 box no own one
+    assert stops[0].box_xyxy_px == (10, 10, 30, 30) and stops[0].confidence == 0.55  # its best partner
+    assert stops[0].source == "detector+coco"
+    assert [d.class_name for d in found if d.class_name != "stop_sign"] == ["yield"]  # other classes pass as reported
+
+
+def test_and_keeps_a_truncated_flag_from_either_network():
+    fused = fuse_and({"detector": [box(10, 10, 30, 30)], "coco": [box(11, 10, 30, 31, truncated=True)]})
+    assert fused[0].truncated
+
+
+def test_the_ensemble_is_the_own_detector_and_coco_and_runs_two_networks_a_frame():
+    assert ENSEMBLE_MEMBERS == ("detector", "coco")
+    assert networks_per_frame(PerceptionConfig(kind="ensemble")) == 2
+    assert networks_per_frame(PerceptionConfig(kind="detector")) == 1
+    assert networks_per_frame(PerceptionConfig(kind="oracle")) == 0
+    with pytest.raises(ConfigError, match="ensemble_fusion"):
+        PerceptionConfig(kind="ensemble", ensemble_fusion="xor")
