@@ -150,7 +150,7 @@ class EnsembleTarget:
 
 def build_target(name: str, weights_path: str = "") -> Target:
     """The named target with the shipped (or given) detector weights and the fetched COCO files."""
-    from avsim.perception.detector.perception import resolve_weights_path
+    from avsim.perception.detector.weights import resolve_weights_path
     from avsim.perception.detector.weights import load_weights
 
     if name not in TARGET_NAMES:
