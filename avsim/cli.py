@@ -541,7 +541,7 @@ def build_parser() -> argparse.ArgumentParser:
     detect = sub.add_parser("detect", help="run a perception on image files; one JSON line of detections per image",
                             description=DETECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     detect.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
-    detect.add_argument("--perception", help="detector (default), coco or onnx")
+    detect.add_argument("--perception", help="detector (default), coco, ensemble or onnx")
     detect.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override any config key, e.g. --set perception.coco_input=resize (repeatable)")
     detect.set_defaults(func=_cmd_detect)

@@ -306,12 +306,13 @@ class PerceptionConfig:
     coco_input: str = "upscale"
     coco_upscale: float = 2.0
     # `coco`: the arithmetic of the network. "fp32" is the port checked against TF.js; "bf16"
-    # runs a bfloat16 copy (perception/coco/bf16.py), 1.7x faster here, whose scores differ
-    # from fp32's by bf16 rounding: on 3000 make-data frames its stop-sign recall in every 5-m
-    # bin of both cameras and its rate of false stop signs in every town lay inside fp32's
-    # Wilson 95% intervals (27 of 27), and the labelled signs' scores moved by 0.004 (median),
-    # 0.057 at most (`python -m avsim.perception.coco.realism --precisions fp32,bf16`). It needs
-    # a CPU on which oneDNN runs bf16 (AVX-512); elsewhere set "fp32".
+    # runs a bfloat16 copy (perception/coco/bf16.py), faster (`avsim bench` times both), whose
+    # scores differ from fp32's by bf16 rounding: on 3000 make-data frames its stop-sign recall
+    # in every 5-m bin of both cameras and its rate of false stop signs in every town lay inside
+    # fp32's Wilson 95% intervals (27 of 27); over 3985 stop-sign detections paired with their
+    # fp32 twins the score moved by 0.0066 (median), 0.144 at most
+    # (`python -m avsim.perception.coco.realism --precisions fp32,bf16`). It needs a CPU on
+    # which oneDNN runs bf16 (AVX-512); elsewhere set "fp32".
     coco_precision: str = "bf16"
     # `onnx`: a YOLOv8/YOLO11-style ONNX detector (output [1, 4 + C, N]: cx, cy, w, h, C class
     # scores) and its class names, index = class id; "stop_sign" is the class the policies act on.

@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from avsim.perception.evaluation import wilson_interval
+from avsim.stats import wilson_interval
 
 SUCCESS_OUTCOMES = ("ran_past_sign", "never_braked")
 

@@ -22,7 +22,7 @@ BUDGET_KEY = {"chen": "eps", "lu_v2": "eps", "lu_v3": "eps", "yang": "eps_peak",
 def budget_sweep(method: str, budgets: list[float], out_dir: Path, steps: int, seed: int = 0,
                  weights_path: str = "", detector: str = "detector") -> tuple[Path, Path]:
     """Write OUT/sweep_METHOD.csv and .png; textures land in OUT/textures/ (each with its record,
-    so a closed-loop experiment can drive past them: `experiments/budget_sweep.toml`)."""
+    so a closed-loop sweep can drive past them: `experiments/sweeps/speed_sweep.toml`)."""
     key = BUDGET_KEY[method]
     for budget in budgets:
         check_hyperparameters(method, seed, {key: budget, "steps": steps})

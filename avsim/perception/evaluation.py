@@ -24,7 +24,6 @@ from avsim.config import CameraConfig
 from avsim.control.pinhole import pinhole_distance_m
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
-from avsim.stats import wilson_interval
 from avsim.perception.detector.data import split_path
 from avsim.stats import wilson_interval
 
