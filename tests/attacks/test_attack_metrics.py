@@ -91,7 +91,8 @@ def test_the_attack_experiment_files_load_with_their_seeds():
     from avsim.experiments.spec import load_experiment
 
     folder = Path(__file__).resolve().parents[2] / "experiments" / "attacks"
-    seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 10, "range_inflation_adjusted.toml": 20}
+    seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 10, "range_inflation_adjusted.toml": 20,
+             "driveby_detector_town07.toml": 20}
     assert sorted(p.name for p in folder.glob("*.toml")) == sorted(seeds)
     for name, n in seeds.items():
         experiment = load_experiment(folder / name)
