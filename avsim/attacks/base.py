@@ -119,20 +119,11 @@ def optimise_bounded(attack: Attack, clean: torch.Tensor, bound: torch.Tensor, g
     bound: (1 or 3, H, W) the largest |delta| allowed at each texel (0 off the face);
     loss_fn(texture, generator) -> scalar to minimise. Returns clean + delta, in [0, 1].
     """
-    delta = torch.zeros_like(clean, requires_grad=True)
-    optimizer = torch.optim.Adam([delta], lr=attack.lr)
-    bar = attack.step_range()
-    for _ in bar:
-        loss = loss_fn(clean + delta, generator)
-        attack._log(loss)
-        bar.set_postfix(loss=f"{attack.loss_history[-1]:.4f}", refresh=False)
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        optimizer.step()
-        with torch.no_grad():
-            delta.copy_(torch.maximum(torch.minimum(delta, bound), -bound))
-            delta.copy_((clean + delta).clamp(0.0, 1.0) - clean)
-    return (clean + delta).detach()
+    def project(delta: torch.Tensor) -> torch.Tensor:
+        delta = torch.maximum(torch.minimum(delta, bound), -bound)
+        return (clean + delta).clamp(0.0, 1.0) - clean
+
+    return _optimise_projected(attack, clean, generator, loss_fn, project)
 
 
 def optimise_within_ssim(attack: Attack, clean: torch.Tensor, eps: float, ssim_floor: float, generator: torch.Generator,
@@ -144,6 +135,18 @@ def optimise_within_ssim(attack: Attack, clean: torch.Tensor, eps: float, ssim_f
     loss_fn(texture, generator) -> scalar to minimise. Returns clean + delta.
     """
     mask = attack.scene.face_mask
+
+    def project(delta: torch.Tensor) -> torch.Tensor:
+        change = (clean + delta.clamp(-eps, eps) * mask).clamp(0.0, 1.0) - clean
+        return within_ssim(clean, change, mask, ssim_floor)
+
+    return _optimise_projected(attack, clean, generator, loss_fn, project)
+
+
+def _optimise_projected(attack: Attack, clean: torch.Tensor, generator: torch.Generator, loss_fn,
+                        project) -> torch.Tensor:
+    """Adam on a perturbation delta of `clean`, with delta replaced by project(delta) after every
+    step (the constraint's projection, under no_grad). Returns clean + delta."""
     delta = torch.zeros_like(clean, requires_grad=True)
     optimizer = torch.optim.Adam([delta], lr=attack.lr)
     bar = attack.step_range()
@@ -155,6 +158,5 @@ def optimise_within_ssim(attack: Attack, clean: torch.Tensor, eps: float, ssim_f
         loss.backward()
         optimizer.step()
         with torch.no_grad():
-            change = (clean + delta.clamp(-eps, eps) * mask).clamp(0.0, 1.0) - clean
-            delta.copy_(within_ssim(clean, change, mask, ssim_floor))
+            delta.copy_(project(delta))
     return (clean + delta).detach()
