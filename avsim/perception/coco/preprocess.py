@@ -26,6 +26,7 @@ from avsim.config import COCO_INPUTS
 from avsim.perception.coco.model import GRAPH_INPUT_SIZE_PX
 from avsim.perception.coco.network import SIZE_MULTIPLE_PX
 from avsim.perception.coco.ops import resize_bilinear_tf, upsample_bilinear_tf, upscale_bilinear_tf
+from avsim.perception.detector import roi
 
 Region = tuple[int, int, int, int]
 
@@ -56,12 +57,7 @@ def clip_region(region_px: Region | None, width_px: int, height_px: int) -> Regi
     """The region clipped to a W x H image (None: the whole image); ValueError if nothing is left."""
     if region_px is None:
         return 0, 0, width_px, height_px
-    x0, y0, x1, y1 = region_px
-    clipped = (max(x0, 0), max(y0, 0), min(x1, width_px), min(y1, height_px))
-    if clipped[0] >= clipped[2] or clipped[1] >= clipped[3]:
-        raise ValueError(f"region of interest {list(region_px)} lies outside the {width_px}x{height_px} image; "
-                         "set perception.front_roi_px / side_roi_px inside it")
-    return clipped
+    return roi.clip_region(region_px, width_px, height_px)
 
 
 def _pad_to_multiple(x: torch.Tensor) -> torch.Tensor:
