@@ -317,7 +317,7 @@ def _add_detector_commands(sub) -> None:
 
 def _cmd_attack_generate(args: argparse.Namespace) -> int:
     from avsim.attacks.generate import (check_hyperparameters, check_ssim_floor, default_bank, generate, generate_from,
-                                        prepare, read_recipe)
+                                        prepare, purify_keys, read_recipe)
     from avsim.attacks.targets import TARGET_NAMES
 
     if args.from_json:
@@ -325,7 +325,8 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
         given = [flag for flag, value in (("--method", args.method), ("--steps", args.steps),
                                           ("--views-per-step", args.views_per_step), ("--set", args.set),
                                           ("--detector", args.detector), ("--cameras", args.cameras),
-                                          ("--ssim-floor", args.ssim_floor), ("--seed", args.seed)) if value not in (None, [])]
+                                          ("--ssim-floor", args.ssim_floor), ("--seed", args.seed),
+                                          ("--purify", args.purify)) if value not in (None, [])]
         if given:
             raise ConfigError(f"--from regenerates a texture from its record alone; drop {', '.join(given)}")
         read_recipe(args.from_json)  # a bad record fails before anything is rendered
@@ -349,7 +350,9 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
         # The spec checks the camera names, so a bad one fails before anything is rendered.
         cameras = tuple(c.strip() for c in (args.cameras or "front").split(",") if c.strip())
         bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
-        _, record = generate(args.method, args.out, seed=seed, setup=prepare(args.weights, bank_spec, detector, photometric),
+        purify = purify_keys(args.purify or "none")
+        _, record = generate(args.method, args.out, seed=seed,
+                             setup=prepare(args.weights, bank_spec, detector, photometric, purify),
                              hyperparameters=hyper, ssim_floor=ssim_floor, threads=args.threads)
     print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
           f"and {Path(args.out).with_suffix('.json')}")
@@ -430,6 +433,9 @@ def _add_attack_commands(sub) -> None:
                      help="camouflage budget: the saved PNG keeps at least this SSIM to the clean sign on its face "
                           "(default: the method's ssim_floor hyperparameter if it has one, else 0.7); the change is "
                           "scaled back until it does")
+    gen.add_argument("--purify", help="attack through the input purification defence: jpeg or median, at the "
+                                      "perception defaults (quality 75, 3 px kernel), by BPDA: the purifier runs "
+                                      "in the forward pass and is the identity in the backward pass (default none)")
     gen.add_argument("--speed-kmh", type=float, default=85.0,
                      help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
     gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",

@@ -14,7 +14,11 @@ the gate down to where the sign leaves the view), a soft maximum over the frames
 - `objective = "gate"`: the score times the smooth braking gate evaluated at the pinhole
   estimate of the *predicted* box (`objective.gate_weight`), so a frame may also be won by
   reading the sign farther than `trigger_dist_m` (range inflation);
-plus `range_weight` times the mean log ratio of the predicted to the true box height. A step
+plus `range_weight` times the mean log ratio of the predicted to the true box height. Against
+the `temporal_vote` defence (`vote_k` of the last `vote_n` frames must see the sign), the soft
+maximum runs over each window's `vote_k`-th largest frame value instead
+(`objective.kth_largest_in_windows`): the attack need only keep the sign hidden in enough
+frames of every window, not in all of them. A step
 samples `sequences_per_step` drive-bys (at most `views_per_step` frames each, evenly from a
 random phase) and back-propagates through the `grad_frames` frames of highest value in each.
 Constraint: the camouflage budget, SSIM >= `ssim_floor` on the sign face, projected after
@@ -26,7 +30,8 @@ from __future__ import annotations
 import torch
 
 from avsim.attacks.base import Attack, Scene, optimise_within_ssim
-from avsim.attacks.objective import StopEvidence, driveby_objective, gate_weight, log_height_ratio
+from avsim.attacks.objective import (StopEvidence, driveby_objective, gate_weight, kth_largest_in_windows,
+                                     log_height_ratio)
 
 OBJECTIVES = ("score", "gate")
 
@@ -38,20 +43,22 @@ class DriveBy(Attack):
     def __init__(self, scene: Scene, *, ssim_floor: float = 0.7, eps: float = 0.5, objective: str = "gate",
                  temperature: float = 0.05, trigger_dist_m: float = 40.0, gate_softness_m: float = 2.0,
                  range_weight: float = 0.0, sequences_per_step: int = 1, grad_frames: int = 8, steps: int = 300,
-                 views_per_step: int = 40, lr: float = 0.01, seed: int = 0) -> None:
+                 views_per_step: int = 40, lr: float = 0.01, vote_k: int = 1, vote_n: int = 1, seed: int = 0) -> None:
         if objective not in OBJECTIVES:
             raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
         if not 0 < ssim_floor < 1 or not 0 < eps <= 1 or temperature <= 0 or gate_softness_m <= 0 or sequences_per_step < 1 \
-                or grad_frames < 1:
-            raise ValueError("need 0 < ssim_floor < 1, 0 < eps <= 1, temperature > 0, gate_softness_m > 0 and "
-                             "sequences_per_step, grad_frames >= 1")
+                or grad_frames < 1 or not 1 <= vote_k <= vote_n:
+            raise ValueError("need 0 < ssim_floor < 1, 0 < eps <= 1, temperature > 0, gate_softness_m > 0, "
+                             "sequences_per_step, grad_frames >= 1 and 1 <= vote_k <= vote_n")
         super().__init__(scene, steps=steps, views_per_step=views_per_step, lr=lr, seed=seed, ssim_floor=ssim_floor,
                          eps=eps, objective=objective, temperature=temperature, trigger_dist_m=trigger_dist_m,
                          gate_softness_m=gate_softness_m, range_weight=range_weight,
-                         sequences_per_step=sequences_per_step, grad_frames=grad_frames)
+                         sequences_per_step=sequences_per_step, grad_frames=grad_frames,
+                         **({"vote_k": vote_k, "vote_n": vote_n} if vote_n > 1 else {}))
         self.ssim_floor, self.eps, self.objective, self.temperature = ssim_floor, eps, objective, temperature
         self.trigger_dist_m, self.gate_softness_m, self.range_weight = trigger_dist_m, gate_softness_m, range_weight
         self.sequences_per_step, self.grad_frames = sequences_per_step, grad_frames
+        self.vote_k, self.vote_n = vote_k, vote_n
 
     def frame_values(self, evidence: StopEvidence, views: torch.Tensor) -> torch.Tensor:
         """(B,) the value each frame enters the soft maximum with (score, or gated score)."""
@@ -84,7 +91,9 @@ class DriveBy(Attack):
         chosen = torch.cat(chosen)
         evidence = self.scene.target.evidence(images[chosen], boxes[chosen])
         values = values.index_put((chosen,), self.frame_values(evidence, idx[chosen]))
-        loss = driveby_objective(list(values.split([len(s) for s in sequences])), self.temperature)
+        per_sequence = [kth_largest_in_windows(v, self.vote_k, self.vote_n) if self.vote_n > 1 else v
+                        for v in values.split([len(s) for s in sequences])]
+        loss = driveby_objective(per_sequence, self.temperature)
         if self.range_weight:
             loss = loss + self.range_weight * log_height_ratio(evidence.box_height_px, bank.true_height_px[idx[chosen]]).mean()
         return loss

@@ -14,7 +14,8 @@ the clean sign until it is not. SSIM and L-infinity in the record are the PNG's.
 
 Every texture is written with a JSON record holding what regenerates it
 (`avsim attack generate --from textures/NAME.json`): method, hyperparameters, seed, target
-detector, view bank, photometric ranges, budget floor and torch thread count, with the
+detector (and the input purification it is attacked through, if any), view bank, photometric
+ranges, budget floor and torch thread count, with the
 sha256 of every weight file used and the compute time.
 """
 
@@ -40,8 +41,9 @@ from avsim.attacks.eot import EotScene
 from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC, PhotometricRanges
 from avsim.attacks.registry import ATTACKS
 from avsim.attacks.sign_view import face_alpha
-from avsim.attacks.targets import TARGET_NAMES, build_target, sha256_file
+from avsim.attacks.targets import TARGET_NAMES, build_target, purified, sha256_file
 from avsim.attacks.view_bank import ViewBankSpec, build_view_bank, closed_loop_bank_spec
+from avsim.config import PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.metrics import write_json_atomic
 from avsim.perception.detector.weights import resolve_weights_path
@@ -139,20 +141,53 @@ class AttackSetup:
     photometric: PhotometricRanges
     seconds: float  # to load the target and render the bank, wall clock
     cpu_seconds: float  # the same, CPU time of this process (the machine may be shared)
+    # The defence's input purification the target sits behind (BPDA), as perception keys; {} for none.
+    purify: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+PURIFY_KEYS = ("purify", "purify_jpeg_quality", "purify_median_kernel_px")
+
+
+def purify_config(purify: dict[str, Any]) -> PerceptionConfig | None:
+    """The perception purification that `purify` (a dict of PURIFY_KEYS, {} for none) describes,
+    checked as a perception config is; a one-line ConfigError for a bad key or value."""
+    if not purify:
+        return None
+    unknown = sorted(set(purify) - set(PURIFY_KEYS))
+    if unknown:
+        raise ConfigError(f"unknown purification key '{unknown[0]}'; the keys are {', '.join(PURIFY_KEYS)}")
+    try:
+        return dataclasses.replace(PerceptionConfig(), **purify)  # its checks raise ConfigError
+    except TypeError as exc:
+        raise ConfigError(f"bad purification keys {purify} ({exc})") from None
+
+
+def purify_keys(name: str) -> dict[str, Any]:
+    """The perception keys of the named purification (`--purify`) at the defaults the leaderboard
+    deploys; {} for none."""
+    if name == "none":
+        return {}
+    defaults = PerceptionConfig()
+    keys = {"purify": name, "purify_jpeg_quality": defaults.purify_jpeg_quality,
+            "purify_median_kernel_px": defaults.purify_median_kernel_px}
+    purify_config(keys)  # checks the name
+    return keys
 
 
 def prepare(weights_path: str = "", bank_spec: ViewBankSpec = ViewBankSpec(), detector: str = "detector",
-            photometric: PhotometricRanges = PhotometricRanges()) -> AttackSetup:
+            photometric: PhotometricRanges = PhotometricRanges(), purify: dict[str, Any] | None = None) -> AttackSetup:
     """Load the target and render the view bank (about 40 s for the study textures' front-camera
     bank; each further camera adds about as much again; the closed-loop drive-by bank is about
-    three times as many views)."""
+    three times as many views). purify: perception keys (PURIFY_KEYS) of an input purification
+    to attack through by BPDA; None or {} for none."""
     started, started_cpu = time.perf_counter(), time.process_time()
-    target = build_target(detector, weights_path)
+    purify = dict(purify or {})
+    target = purified(build_target(detector, weights_path), purify_config(purify))
     clean_full_rgb = clean_stop_texture()
     clean_small = downsample(clean_full_rgb)
     scene = EotScene(build_view_bank(bank_spec, clean_small), target, photometric)
     return AttackSetup(scene, clean_full_rgb, clean_small, detector, target.weight_hashes(), bank_spec, photometric,
-                       time.perf_counter() - started, time.process_time() - started_cpu)
+                       time.perf_counter() - started, time.process_time() - started_cpu, purify)
 
 
 def default_bank(method: str, cameras: tuple[str, ...], speed_kmh: float) -> tuple[ViewBankSpec, PhotometricRanges]:
@@ -225,6 +260,7 @@ def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: A
         "ssim_floor": ssim_floor,
         "paper": attack_class.paper,
         "detector": setup.detector,
+        **({"purify": setup.purify} if setup.purify else {}),
         "weights_sha256": setup.weight_hashes,
         # The spec carries the cameras; the counts show each camera's views really made the bank.
         "view_bank": {**asdict(setup.bank_spec), "views": len(bank),
@@ -257,6 +293,7 @@ class Recipe:
     ssim_floor: float
     threads: int
     weight_hashes: dict[str, str]
+    purify: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def _dataclass_from(kind, values: dict[str, Any], where: str):
@@ -276,6 +313,7 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         bank = {k: v for k, v in record["view_bank"].items() if k not in ("views", "views_by_camera")}
         photometric = record.get("photometric", {})
         detector = record.get("detector", "detector")
+        purify = dict(record.get("purify", {}))
     except FileNotFoundError:
         raise ConfigError(f"--from {path}: no such file; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
     except (json.JSONDecodeError, KeyError, TypeError, AttributeError) as exc:
@@ -283,10 +321,15 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
     if detector not in TARGET_NAMES:
         raise ConfigError(f"--from {path}: unknown detector {detector!r}; choose one of: {', '.join(TARGET_NAMES)}")
     check_hyperparameters(method, seed, hyper)
+    try:
+        purify_config(purify)
+    except ConfigError as exc:
+        raise ConfigError(f"--from {path}: purify: {exc}") from None
     hashes = record.get("weights_sha256") or {record.get("detector_weights", "sign_detector.pt"): record.get("detector_weights_sha256")}
     return Recipe(method, seed, hyper, detector, _dataclass_from(ViewBankSpec, bank, f"--from {path}: view_bank"),
                   _dataclass_from(PhotometricRanges, photometric, f"--from {path}: photometric"),
-                  float(record.get("ssim_floor", SSIM_FLOOR)), int(record.get("torch_threads", DEFAULT_THREADS)), hashes)
+                  float(record.get("ssim_floor", SSIM_FLOOR)), int(record.get("torch_threads", DEFAULT_THREADS)), hashes,
+                  purify)
 
 
 def check_weights(recipe: Recipe, weights_path: str = "") -> None:
@@ -314,6 +357,6 @@ def generate_from(json_path: str | os.PathLike, out_png: str | os.PathLike, weig
     check_weights(recipe, weights_path)
     check_ssim_floor(recipe.ssim_floor)
     torch.set_num_threads(recipe.threads)
-    setup = prepare(weights_path, recipe.bank_spec, recipe.detector, recipe.photometric)
+    setup = prepare(weights_path, recipe.bank_spec, recipe.detector, recipe.photometric, recipe.purify)
     return generate(recipe.method, out_png, seed=recipe.seed, setup=setup, hyperparameters=recipe.hyperparameters,
                     ssim_floor=recipe.ssim_floor, threads=recipe.threads, progress=progress)

@@ -13,6 +13,8 @@ confident frame inside the braking gate, so the objective is a soft maximum over
 approach sequence, not a mean. `gate_weight` is the braking gate itself, made smooth: a frame
 counts only once the policy's pinhole estimate, computed from the *predicted* box height, is
 inside the trigger distance, so a box read short (range inflation) keeps a frame out of it.
+Against a k-of-n temporal vote the decision is a window's k-th best frame
+(`kth_largest_in_windows`), and the soft maximum runs over windows instead of frames.
 """
 
 from __future__ import annotations
@@ -108,6 +110,20 @@ def gate_weight(estimate_m: torch.Tensor, trigger_dist_m: float | None, softness
 def driveby_objective(frame_values: list[torch.Tensor], temperature: float) -> torch.Tensor:
     """Mean over sequences of the soft maximum over each sequence's frames (each (F_i,))."""
     return torch.stack([soft_maximum(values, temperature) for values in frame_values]).mean()
+
+
+def kth_largest_in_windows(values: torch.Tensor, k: int, n: int) -> torch.Tensor:
+    """(F,) frame values, far to near -> (max(F - n + 1, 1),): the k-th largest value in each
+    window of n consecutive frames (a sequence shorter than n is one window).
+
+    A k-of-n vote passes a window when its k-th largest frame is above the threshold, so this is
+    the quantity an attack on the vote must hold down in every window; k = n = 1 gives the
+    frame values themselves.
+    """
+    if not 1 <= k <= n:
+        raise ValueError(f"a k-of-n vote needs 1 <= k <= n, got k={k}, n={n}")
+    windows = values.unfold(0, n, 1) if len(values) >= n else values[None]
+    return torch.topk(windows, min(k, windows.shape[1]), dim=1).values[:, -1]
 
 
 def log_height_ratio(box_height_px: torch.Tensor, true_height_px: torch.Tensor) -> torch.Tensor:

@@ -12,6 +12,11 @@ differentiable in the pixels:
 - `ensemble`: both; a view's score is a soft maximum of the two, so a step works on
   whichever detector still sees the sign, and the box height is their geometric mean.
 
+Any of them can sit behind the perception's input purification (`perception.purify`, a
+defence): `PurifiedTarget` runs the deployed JPEG codec or median filter on the views in the
+forward pass and passes gradients straight through it (BPDA, `avsim.attacks.bpda`), the
+adaptive attack against that defence (`avsim attack generate --purify jpeg`).
+
 `weight_hashes()` names the weight files and their sha256, for the texture's metadata.
 """
 
@@ -23,8 +28,10 @@ from typing import Protocol
 
 import torch
 
+from avsim.attacks.bpda import TensorFn, purifier_layer
 from avsim.attacks.objective import (StopEvidence, cells_near_boxes, masked_max, reported_height_px, soft_maximum,
                                      stop_evidence)
+from avsim.config import PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.perception.coco.labels import STOP_SIGN_CLASS_ID
 from avsim.perception.coco.ops import upsample_bilinear_tf
@@ -146,6 +153,35 @@ class EnsembleTarget:
 
     def weight_hashes(self) -> dict[str, str]:
         return {name: digest for target in self.targets for name, digest in target.weight_hashes().items()}
+
+
+class PurifiedTarget:
+    """`inner` behind a purification layer (`bpda.purifier_layer`): the views are purified as the
+    deployed perception purifies its frames, then scored; gradients pass the purifier unchanged.
+
+    The deployed perception purifies the whole camera frame; here each view's crop is, so JPEG's
+    8 px blocks may fall on the sign differently than in the loop (the crop's origin is not
+    aligned to the frame's block grid). The median filter is the same either way away from
+    the crop's border.
+    """
+
+    def __init__(self, inner: Target, purify: TensorFn, purify_name: str) -> None:
+        self.inner = inner
+        self.purify = purify
+        self.name = f"{inner.name}+{purify_name}"
+
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        return self.inner.evidence(self.purify(images), sign_boxes_px)
+
+    def weight_hashes(self) -> dict[str, str]:
+        return self.inner.weight_hashes()
+
+
+def purified(target: Target, purify: PerceptionConfig | None) -> Target:
+    """`target` behind `purify`'s purification; `target` itself when it purifies nothing."""
+    if purify is None or purify.purify == "none":
+        return target
+    return PurifiedTarget(target, purifier_layer(purify), purify.purify)
 
 
 def build_target(name: str, weights_path: str = "") -> Target:

@@ -10,7 +10,8 @@ from avsim.attacks.generate import clean_stop_texture, downsample
 from avsim.attacks.objective import driveby_objective, log_height_ratio
 from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC
 from avsim.attacks.range_inflation import RangeInflation
-from avsim.attacks.targets import build_target
+from avsim.attacks.targets import build_target, purified
+from avsim.config import PerceptionConfig
 
 STEPS = 8
 
@@ -80,3 +81,29 @@ def test_the_coco_and_ensemble_targets_score_the_clean_sign_and_pass_gradients(d
         assert torch.allclose(evidence.box_height_px, true_height, rtol=0.25), (name, evidence.box_height_px, true_height)
         (evidence.score.sum() + evidence.box_height_px.sum()).backward()
         assert texture.grad.abs().sum() > 0
+
+
+def test_the_vote_objective_falls_on_a_held_out_drive(drive_by_bank, held_out_drive_by_bank, clean_small, detector_target):
+    """Against a 3-of-5 vote the loss is the soft maximum over windows of each window's 3rd best frame."""
+    scene = EotScene(drive_by_bank, detector_target, CLOSED_LOOP_PHOTOMETRIC)
+    attack = DriveBy(scene, steps=STEPS, views_per_step=12, grad_frames=4, lr=0.03, vote_k=3, vote_n=5, seed=0)
+    result = attack(clean_small)
+    assert result.hyperparameters["vote_k"] == 3 and result.hyperparameters["vote_n"] == 5
+    held_out = DriveBy(EotScene(held_out_drive_by_bank, detector_target, CLOSED_LOOP_PHOTOMETRIC), vote_k=3, vote_n=5)
+    assert held_out_values(held_out.scene, result.texture, held_out) < held_out_values(held_out.scene, clean_small, held_out)
+
+
+@pytest.mark.parametrize("purify", ["jpeg", "median"])
+def test_the_adaptive_attack_through_purification_beats_the_non_adaptive_one_behind_it(
+        drive_by_bank, held_out_drive_by_bank, clean_small, detector_target, purify):
+    """BPDA: the same attack and budget, optimised through the purifier or not; both scored behind
+    it on a held-out drive-by. The adaptive texture must lower the purified detector's evidence more."""
+    purifier = purified(detector_target, PerceptionConfig(purify=purify))
+    settings = dict(steps=STEPS, views_per_step=12, grad_frames=4, lr=0.03, seed=0)
+    plain = DriveBy(EotScene(drive_by_bank, detector_target, CLOSED_LOOP_PHOTOMETRIC), **settings)(clean_small)
+    adaptive = DriveBy(EotScene(drive_by_bank, purifier, CLOSED_LOOP_PHOTOMETRIC), **settings)(clean_small)
+    behind = DriveBy(EotScene(held_out_drive_by_bank, purifier, CLOSED_LOOP_PHOTOMETRIC))
+    clean_value = held_out_values(behind.scene, clean_small, behind)
+    adaptive_value = held_out_values(behind.scene, adaptive.texture, behind)
+    assert adaptive_value < held_out_values(behind.scene, plain.texture, behind)
+    assert adaptive_value < clean_value

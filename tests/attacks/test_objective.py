@@ -5,8 +5,8 @@ import math
 import pytest
 import torch
 
-from avsim.attacks.objective import (BOX_SCORE_TEMPERATURE, driveby_objective, gate_weight, log_height_ratio,
-                                     soft_maximum, stop_evidence)
+from avsim.attacks.objective import (BOX_SCORE_TEMPERATURE, driveby_objective, gate_weight, kth_largest_in_windows,
+                                     log_height_ratio, soft_maximum, stop_evidence)
 from avsim.perception.detector.boxes import cell_centres
 
 
@@ -81,3 +81,13 @@ def test_the_reported_height_follows_the_best_scored_cell():
     height = float(stop_evidence([maps], (stride,), box).box_height_px)
     # Scores 0.964 against 0.534: softmax(score / 0.05) gives the neighbour e^-8.6 of the weight.
     assert 24.0 <= height < 24.0 + 16.0 * math.exp(-(0.964 - 0.534) / BOX_SCORE_TEMPERATURE) * 2
+
+
+def test_the_kth_largest_in_windows_of_a_k_of_n_vote():
+    values = torch.tensor([0.1, 0.9, 0.2, 0.8, 0.7, 0.0, 0.3])
+    # Windows of 5: [.1 .9 .2 .8 .7], [.9 .2 .8 .7 0], [.2 .8 .7 0 .3]; their 3rd largest values.
+    assert torch.allclose(kth_largest_in_windows(values, 3, 5), torch.tensor([0.7, 0.7, 0.3]))
+    assert torch.equal(kth_largest_in_windows(values, 1, 1), values)
+    assert torch.allclose(kth_largest_in_windows(values[:3], 3, 5), torch.tensor([0.1]))  # shorter than a window
+    with pytest.raises(ValueError, match="k-of-n"):
+        kth_largest_in_windows(values, 4, 3)
