@@ -115,6 +115,9 @@ def plot_confidence_by_detector(results: Mapping[Key, DriveBys], out_path: Path,
     import matplotlib.pyplot as plt
 
     detectors = sorted({d for _, d in results}, key=lambda d: (d != "detector", d))
+    # One colour per texture, the same in every panel (tab20 has 20; the default cycle's 10 repeat).
+    attacked = list(dict.fromkeys(sign for sign, _ in results if sign != "clean"))
+    colours = {sign: plt.get_cmap("tab20")(i % 20) for i, sign in enumerate(attacked)}
     fig, axes = plt.subplots(1, len(detectors), figsize=(5.2 * len(detectors), 3.8), dpi=120, sharey=True, squeeze=False)
     for ax, detector in zip(axes[0], detectors):
         for (sign, det), result in results.items():
@@ -128,7 +131,7 @@ def plot_confidence_by_detector(results: Mapping[Key, DriveBys], out_path: Path,
                     centres.append((lo + hi) / 2)
                     means.append(value)
             ax.plot(centres, means, lw=1.6 if sign == "clean" else 1.1, ls="-" if sign == "clean" else "--",
-                    color="black" if sign == "clean" else None, label=sign)
+                    color="black" if sign == "clean" else colours[sign], label=sign)
         ax.axhline(results[next(k for k in results if k[1] == detector)].threshold, color="grey", lw=0.8, ls=":")
         ax.axvspan(*GATE_WINDOW_M, color="tab:red", alpha=0.06, lw=0)
         ax.set_title(f"under `{detector}`")
@@ -144,8 +147,13 @@ def plot_confidence_by_detector(results: Mapping[Key, DriveBys], out_path: Path,
 
 
 def source_of(budget: Mapping[str, object]) -> str:
-    """The detector a texture was optimised against, from its record ('-' for the clean sign)."""
-    return str(budget.get("detector", "detector")) if budget else "-"
+    """The detector a texture was optimised against, from its record ('-' for the clean sign), with
+    the purification it was optimised through, if any (e.g. 'detector + jpeg')."""
+    if not budget:
+        return "-"
+    purify = budget.get("purify")
+    through = f" + {purify['purify']}" if isinstance(purify, Mapping) and purify.get("purify", "none") != "none" else ""
+    return f"{budget.get('detector', 'detector')}{through}"
 
 
 def frames_summary(results: Sequence[DriveBys]) -> str:

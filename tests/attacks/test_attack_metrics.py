@@ -101,3 +101,12 @@ def test_the_attack_experiment_files_load_with_their_seeds():
     towns = load_experiment(folder / "success_towns.toml")
     cells = {(c.config.scenario.town, c.config.scenario.placement) for c in towns.cells}
     assert len(cells) == 8 and ("town07", "standard") not in cells
+
+
+def test_a_texture_source_names_its_detector_and_the_purification_it_went_through():
+    from avsim.attacks.drive_by_report import source_of
+
+    assert source_of({}) == "-"
+    assert source_of({"detector": "coco"}) == "coco"
+    assert source_of({"method": "yang"}) == "detector"  # records from before targets were named
+    assert source_of({"detector": "detector", "purify": {"purify": "jpeg", "purify_jpeg_quality": 75}}) == "detector + jpeg"
