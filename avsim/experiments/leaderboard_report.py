@@ -246,7 +246,13 @@ def safety_availability_figure(path: Path, table: Sequence[Row]) -> Path:
         ax.errorbar(row.availability, row.safety, xerr=[[row.availability - a_lo], [a_hi - row.availability]],
                     yerr=[[row.safety - s_lo], [s_hi - row.safety]], fmt="o", ms=7 if on_front else 5, capsize=3,
                     color="#d62728" if on_front else "#1f77b4", alpha=0.9)
-        ax.annotate(row.name, (row.availability, row.safety), textcoords="offset points", xytext=(6, 4), fontsize=8)
+    # One label per point: defences with the same safety and availability share it (their names joined).
+    names_at: dict[tuple[float, float], list[str]] = {}
+    for row in table:
+        if row.safety is not None and row.availability is not None:
+            names_at.setdefault((row.availability, row.safety), []).append(row.name)
+    for (availability, safety), names in names_at.items():
+        ax.annotate(", ".join(names), (availability, safety), textcoords="offset points", xytext=(6, 4), fontsize=8)
     points = sorted((r.availability, r.safety) for r in table if r.name in front)
     if points:
         ax.plot(*zip(*points), color="#d62728", lw=1.2, ls="--", label="Pareto front")
