@@ -36,8 +36,11 @@ ORPHAN_LIMIT_S = 10.0
 def _start(argv: list[str], stderr: Path) -> subprocess.Popen:
     """`python -m avsim ARGV` in its own process group, so a signal can go to the group as Ctrl-C does."""
     with stderr.open("wb") as err:
+        # SIGINT's default action restored in the child, as a terminal's foreground process has it: a test
+        # session started in the background (`nohup pytest &`) ignores SIGINT, and a child inherits that.
         return subprocess.Popen([sys.executable, "-m", "avsim", *argv], cwd=REPO, stdout=subprocess.DEVNULL,
-                                stderr=err, start_new_session=True)
+                                stderr=err, start_new_session=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _wait_until(condition, proc: subprocess.Popen, what: str, log: Path) -> None:
