@@ -168,9 +168,11 @@ def purify_keys(name: str) -> dict[str, Any]:
     if name == "none":
         return {}
     defaults = PerceptionConfig()
-    keys = {"purify": name, "purify_jpeg_quality": defaults.purify_jpeg_quality,
-            "purify_median_kernel_px": defaults.purify_median_kernel_px}
-    purify_config(keys)  # checks the name
+    keys = {**{key: getattr(defaults, key) for key in PURIFY_KEYS}, "purify": name}
+    try:
+        purify_config(keys)  # checks the name
+    except ConfigError as exc:
+        raise ConfigError(f"--purify {name}: {exc}") from None
     return keys
 
 

@@ -109,3 +109,11 @@ def test_the_texture_record_names_every_weight_file_of_the_ensemble():
     hashes = build_target("ensemble").weight_hashes()
     assert set(hashes) == {"sign_detector.pt", "centernet.json", "centernet.bin"}
     assert all(len(digest) == 64 for digest in hashes.values())
+
+
+def test_an_unknown_purification_is_one_line_and_exit_2_before_anything_is_rendered(tmp_path, capsys):
+    out = tmp_path / "t.png"
+    assert cli.main(["attack", "generate", "--method", "driveby", "--purify", "gzip", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--purify gzip" in err and "jpeg, median" in err and len(err.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
