@@ -21,47 +21,18 @@ import argparse
 import os
 import sys
 import tempfile
-import tomllib
 import traceback
 import typing
 from pathlib import Path
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+from avsim.cli_attack import add_attack_commands
+from avsim.cli_overrides import merge_overrides, parse_set
 from avsim.config import check_seed
 from avsim.errors import AvsimError, ConfigError, Interrupted
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
-
-
-def _parse_set(items: Sequence[str]) -> dict[str, Any]:
-    """Turn ["policy.baseline_brake=0.9", ...] into a nested override mapping."""
-    overrides: dict[str, Any] = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise ConfigError(f"--set expects KEY=VALUE (e.g. policy.baseline_brake=0.9), got '{item}'")
-        try:
-            value = tomllib.loads(f"v = {raw}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = raw  # a bare word is a string
-        node = overrides
-        *parents, leaf = key.split(".")
-        for part in parents:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise ConfigError(f"--set {key} conflicts with an earlier --set that gave '{part}' a plain value")
-        if isinstance(node.get(leaf), dict):
-            raise ConfigError(f"--set {key} conflicts with an earlier --set of a key inside '{leaf}'")
-        node[leaf] = value
-    return overrides
-
-
-def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
-    merged = dict(base)
-    for key, value in extra.items():
-        merged[key] = _merge(merged[key], value) if isinstance(value, dict) and isinstance(merged.get(key), dict) else value
-    return merged
 
 
 def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
@@ -85,7 +56,7 @@ def _flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
         "perception": {"kind": getattr(args, "perception", None)},
     }
     overrides = {section: {k: v for k, v in values.items() if v is not None} for section, values in flags.items()}
-    return _merge(overrides, _parse_set(args.set))
+    return merge_overrides(overrides, parse_set(args.set))
 
 
 def _config_from_args(args: argparse.Namespace):
@@ -245,7 +216,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     from avsim.config import SimConfig, with_overrides
 
     flags = {"perception": {"kind": args.perception}} if args.perception else {}
-    config = with_overrides(SimConfig(), _merge(flags, _parse_set(args.set))).perception
+    config = with_overrides(SimConfig(), merge_overrides(flags, parse_set(args.set))).perception
     for record in detect_images(config, [Path(p) for p in args.images]):
         print(json.dumps(record), flush=True)
     return 0
@@ -313,155 +284,6 @@ def _add_detector_commands(sub) -> None:
     add_output_argument(evaluate, "--out", kind=FOLDER, default="results/detector_eval", help="report directory")
     evaluate.add_argument("--no-progress", action="store_true", help="no progress bar")
     evaluate.set_defaults(func=_cmd_eval)
-
-
-def _cmd_attack_generate(args: argparse.Namespace) -> int:
-    from avsim.attacks.generate import (check_hyperparameters, check_ssim_floor, default_bank, generate, generate_from,
-                                        prepare, purify_keys, read_recipe)
-    from avsim.attacks.targets import TARGET_NAMES
-
-    if args.from_json:
-        # Everything comes from the record; flags that would change the texture are refused.
-        given = [flag for flag, value in (("--method", args.method), ("--steps", args.steps),
-                                          ("--views-per-step", args.views_per_step), ("--set", args.set),
-                                          ("--detector", args.detector), ("--cameras", args.cameras),
-                                          ("--ssim-floor", args.ssim_floor), ("--seed", args.seed),
-                                          ("--purify", args.purify)) if value not in (None, [])]
-        if given:
-            raise ConfigError(f"--from regenerates a texture from its record alone; drop {', '.join(given)}")
-        read_recipe(args.from_json)  # a bad record fails before anything is rendered
-        _, record = generate_from(args.from_json, args.out, args.weights)
-    else:
-        if not args.method:
-            raise ConfigError("avsim attack generate needs --method NAME (or --from textures/NAME.json)")
-        hyper = {k: v for k, v in (("steps", args.steps), ("views_per_step", args.views_per_step)) if v is not None}
-        hyper.update(_parse_set(args.set))
-        seed = 0 if args.seed is None else args.seed
-        check_seed(seed, "--seed")
-        check_hyperparameters(args.method, seed, hyper)
-        detector = args.detector or "detector"
-        if detector not in TARGET_NAMES:
-            raise ConfigError(f"--detector must be one of {', '.join(TARGET_NAMES)}, got '{detector}'")
-        ssim_floor = args.ssim_floor  # None: the method's own floor, or 0.7
-        if ssim_floor is not None:
-            check_ssim_floor(ssim_floor)
-        if not 0 < args.speed_kmh <= 200:
-            raise ConfigError(f"--speed-kmh must be in (0, 200], got {args.speed_kmh}")
-        # The spec checks the camera names, so a bad one fails before anything is rendered.
-        cameras = tuple(c.strip() for c in (args.cameras or "front").split(",") if c.strip())
-        bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
-        purify = purify_keys(args.purify or "none")
-        _, record = generate(args.method, args.out, seed=seed,
-                             setup=prepare(args.weights, bank_spec, detector, photometric, purify),
-                             hyperparameters=hyper, ssim_floor=ssim_floor, threads=args.threads)
-    print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
-          f"and {Path(args.out).with_suffix('.json')}")
-    return 0
-
-
-def _cmd_attack_eval(args: argparse.Namespace) -> int:
-    from avsim.attacks.disappearance import drive_by_frames
-    from avsim.attacks.drive_by_report import plot_confidence_by_detector
-    from avsim.attacks.evaluate import evaluate_texture, fig3_grid
-    from avsim.attacks.report import write_attack_report
-    from avsim.config import SimConfig
-    from avsim.world.scene import resolve_sign_texture
-    from avsim.world.textures import TEXTURE_DIR
-
-    signs = [s.strip() for s in args.signs.split(",") if s.strip()]
-    for sign in signs:
-        resolve_sign_texture(sign)  # fail on a bad name before rendering anything
-    detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
-    unknown = [d for d in detectors if d not in ("detector", "coco")]
-    if unknown or not detectors:
-        raise ConfigError(f"--detectors takes detector and/or coco, comma-separated; got '{args.detectors}'")
-    if args.drives < 0:
-        raise ConfigError(f"--drives must be >= 0, got {args.drives}")
-    placements = tuple(p.strip() for p in args.placements.split(","))
-    threshold = SimConfig().policy.conf_threshold
-    out = Path(args.out)
-    reports, drive_bys = [], {}
-    for sign in signs:
-        print(f"measuring {sign} ...", flush=True)
-        reports.append(evaluate_texture(sign, args.town, placements, threshold, detector=detectors[0]))
-        for detector in detectors if args.drives else ():
-            drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives)
-    fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, detector=detectors[0])
-    figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
-    path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure)
-    print(path.read_text())
-    print(f"wrote {path}")
-    return 0
-
-
-def _cmd_attack_sweep(args: argparse.Namespace) -> int:
-    from avsim.attacks.sweep import BUDGET_KEY, budget_sweep
-
-    if args.method not in BUDGET_KEY:
-        raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
-    try:
-        budgets = [float(b) for b in args.budgets.split(",")]
-    except ValueError:
-        raise ConfigError(f"--budgets expects comma-separated numbers, e.g. 0.05,0.1,0.2; got '{args.budgets}'") from None
-    csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights)
-    print(f"wrote {csv_path} and {plot_path}")
-    return 0
-
-
-def _add_attack_commands(sub) -> None:
-    attack = sub.add_parser("attack", help="optimise adversarial stop-sign textures and measure them in renders")
-    asub = attack.add_subparsers(dest="attack_command", required=True)
-    gen = asub.add_parser("generate", help="optimise one texture against a detector (or remake one with --from)")
-    gen.add_argument("--method", help="chen, eykholt, lu_v2, lu_v3, yang, driveby or range_inflation")
-    add_output_argument(gen, "--out", kind=FILE, suffix=".png", companions=(".json",), required=True,
-                        help="PNG to write (a JSON record is written beside it)")
-    gen.add_argument("--from", dest="from_json", metavar="JSON",
-                     help="regenerate the texture a record describes (e.g. textures/driveby_detector.json): the same "
-                          "method, hyperparameters, seed, detector, view bank and budget")
-    gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
-                                        "default), coco (the COCO CenterNet port) or ensemble (both at once)")
-    gen.add_argument("--seed", type=int)
-    gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
-    gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
-    gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
-    gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
-    gen.add_argument("--cameras",
-                     help="comma-separated cameras whose views the texture is optimised over: front, side "
-                          "(default front; front,side is the adaptive attacker against the side-camera defence)")
-    gen.add_argument("--ssim-floor", type=float,
-                     help="camouflage budget: the saved PNG keeps at least this SSIM to the clean sign on its face "
-                          "(default: the method's ssim_floor hyperparameter if it has one, else 0.7); the change is "
-                          "scaled back until it does")
-    gen.add_argument("--purify", help="attack through the input purification defence: jpeg or median, at the "
-                                      "perception defaults (quality 75, 3 px kernel), by BPDA: the purifier runs "
-                                      "in the forward pass and is the identity in the backward pass (default none)")
-    gen.add_argument("--speed-kmh", type=float, default=85.0,
-                     help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
-    gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",
-                     help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
-    gen.set_defaults(func=_cmd_attack_generate)
-    ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
-    ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
-    ev.add_argument("--town", default="town07")
-    ev.add_argument("--placements", default="near,standard,far",
-                    help="placements of the fixed-distance tables (under the first of --detectors)")
-    ev.add_argument("--detectors", default="detector",
-                    help="comma-separated perceptions the drive-bys are measured under: detector, coco (default detector)")
-    ev.add_argument("--drives", type=int, default=6,
-                    help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
-                         "0 skips them)")
-    ev.add_argument("--drive-placement", default="standard", help="placement of the drive-bys (default standard)")
-    add_output_argument(ev, "--out", kind=FOLDER, default="results/attack_eval", help="report directory")
-    ev.set_defaults(func=_cmd_attack_eval)
-    sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")
-    sw.add_argument("--method", required=True)
-    sw.add_argument("--budgets", required=True, help="comma-separated budgets (eps, eps_peak or sticker area fraction)")
-    sw.add_argument("--steps", type=int, default=100, help="optimisation steps per budget")
-    sw.add_argument("--seed", type=int, default=0)
-    sw.add_argument("--weights", default="")
-    add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
-    sw.set_defaults(func=_cmd_attack_sweep)
 
 
 class _OneLineErrors(argparse.ArgumentParser):
@@ -556,7 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
-    _add_attack_commands(sub)
+    add_attack_commands(sub)
     parser.add_argument("--debug", action="store_true", help="on an error, print the full traceback too")
     for _, child in iter_parsers(parser):
         if child is not parser:

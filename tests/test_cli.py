@@ -4,7 +4,6 @@ import pytest
 
 import avsim.loop
 from avsim import cli
-from avsim.errors import ConfigError
 
 
 @pytest.fixture
@@ -85,52 +84,6 @@ def test_snapshot_strip_puts_the_towns_front_cameras_side_by_side_at_half_size(t
                      "--out", str(tmp_path / "strip")]) == 0
     image = cv2.imread(str(tmp_path / "strip.png"))
     assert image.shape == (240, 640, 3)
-
-
-# ---- _parse_set ------------------------------------------------------------------------
-
-def test_parse_set_nests_dotted_keys():
-    assert cli._parse_set(["policy.baseline_brake=0.9", "policy.name=adjusted", "scenario.seed=3"]) == {
-        "policy": {"baseline_brake": 0.9, "name": "adjusted"},
-        "scenario": {"seed": 3},
-    }
-
-
-def test_parse_set_deeper_nesting_and_top_level_key():
-    assert cli._parse_set(["a.b.c=1", "top=2"]) == {"a": {"b": {"c": 1}}, "top": 2}
-
-
-@pytest.mark.parametrize(
-    "raw, expected, kind",
-    [
-        ("0.9", 0.9, float),
-        ("85.0", 85.0, float),
-        ("1e3", 1000.0, float),
-        ("3", 3, int),
-        ("-2", -2, int),
-        ("true", True, bool),
-        ("false", False, bool),
-        ("town03", "town03", str),
-        ('"quoted"', "quoted", str),
-        ("textures/faded.png", "textures/faded.png", str),
-    ],
-)
-def test_parse_set_types_values(raw, expected, kind):
-    value = cli._parse_set([f"k={raw}"])["k"]
-    assert value == expected
-    assert type(value) is kind
-
-
-def test_parse_set_later_value_wins():
-    assert cli._parse_set(["policy.name=baseline", "policy.name=adjusted"]) == {"policy": {"name": "adjusted"}}
-
-
-@pytest.mark.parametrize("item", ["nonsense", "=5", ""])
-def test_parse_set_rejects_malformed_items(item):
-    with pytest.raises(ConfigError) as excinfo:
-        cli._parse_set([item])
-    assert "\n" not in str(excinfo.value)
-    assert "KEY=VALUE" in str(excinfo.value)
 
 
 def test_set_overrides_flag_values():

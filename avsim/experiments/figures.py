@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from avsim.experiments import study
-from avsim.experiments.report import Cells, origin_before_sign_m
+from avsim.experiments.report_cells import Cells, origin_before_sign_m
 from avsim.experiments.spec import Experiment
 
 _STOP_LINE_BEFORE_SIGN_M = 1.0  # the towns' road convention (README: the sign stands 1 m past the line)

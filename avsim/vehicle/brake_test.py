@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass
 
 import mujoco
-import numpy as np
 
 from avsim.config import VehicleConfig
 from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car

@@ -198,7 +198,7 @@ class Vehicle:
         brake was requested and that wheel's hub moved faster than SLIP_REPORT_MIN_SPEED_MPS,
         or None if there was no such step.
         """
-        model, data, config = self.model, self.data, self.config
+        model, data = self.model, self.data
         braking = bool(self._brake_request_nm.any())
         driving = bool(self._drive_request_nm.any())
         if not braking and self._brake_applied_nm.any():

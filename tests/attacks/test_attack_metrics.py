@@ -66,7 +66,8 @@ def test_success_rate_overrun_and_braking_delay():
 
 
 def test_the_attack_success_report_pairs_each_cell_with_its_clean_cell(tmp_path):
-    from avsim.experiments.report import Cells, attack_success_section
+    from avsim.experiments.report_cells import Cells
+    from avsim.experiments.report_sections import attack_success_section
     from avsim.experiments.spec import load_experiment
 
     path = tmp_path / "success.toml"

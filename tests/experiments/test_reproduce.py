@@ -127,7 +127,8 @@ def test_findings_do_not_count_a_run_that_had_no_stop_to_make_as_a_failure(tmp_p
 
 
 def test_a_compare_report_sets_each_cell_beside_the_other_experiments_same_named_cell(tmp_path):
-    from avsim.experiments.report import Cells, compare_section
+    from avsim.experiments.report_cells import Cells
+    from avsim.experiments.report_sections import compare_section
     from avsim.experiments.spec import load_experiment
 
     (tmp_path / "dry.toml").write_text(TINY_TABLE3)
@@ -199,7 +200,8 @@ def test_failed_runs_are_counted_beside_the_outcomes_of_the_others(tmp_path):
 
 
 def test_a_sensitivity_report_tabulates_each_varied_constant_with_the_others_at_their_defaults(tmp_path):
-    from avsim.experiments.report import Cells, sensitivity_section
+    from avsim.experiments.report_cells import Cells
+    from avsim.experiments.report_sections import sensitivity_section
     from avsim.experiments.spec import load_experiment
 
     cells_toml = "".join(f'[[cells]]\nname = "{name}"\npolicy = {{ name = "baseline", {setting} }}\n'
@@ -220,7 +222,8 @@ def test_a_sensitivity_report_tabulates_each_varied_constant_with_the_others_at_
 
 
 def test_a_stop_rates_report_gives_each_policy_and_place_its_rate_interval_and_margin(tmp_path):
-    from avsim.experiments.report import Cells, stop_rates
+    from avsim.experiments.report_cells import Cells
+    from avsim.experiments.report_sections import stop_rates
     from avsim.experiments.spec import load_experiment
 
     path = tmp_path / "rates.toml"

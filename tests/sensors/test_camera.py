@@ -11,7 +11,6 @@ from avsim.errors import RenderError
 from avsim.loop import ClosedLoop
 from avsim.sensors import gl
 from avsim.sensors.camera import Intrinsics
-from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from helpers import make_config
 
 

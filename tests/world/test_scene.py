@@ -1,7 +1,5 @@
 """Scene composition: towns, the stop sign's geometry and placement, the car, textures."""
 
-import math
-
 import numpy as np
 import pytest
 

@@ -11,7 +11,7 @@ import torch
 from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
-from avsim.perception.ap import average_precision, match_detections, mean_ap
+from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.data import collate
 from avsim.perception.detector.postprocess import decode

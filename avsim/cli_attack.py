@@ -1,0 +1,176 @@
+"""`avsim attack generate | eval | sweep`: the attack subcommands and their arguments.
+
+`avsim.cli` adds them to its parser (`add_attack_commands`) and is their error boundary: every
+check here raises a one-line ConfigError before anything is rendered or optimised.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from avsim.cli_overrides import parse_set
+from avsim.config import check_seed
+from avsim.errors import ConfigError
+from avsim.outputs import FILE, FOLDER, add_output_argument
+
+
+def _cmd_attack_generate(args: argparse.Namespace) -> int:
+    from avsim.attacks.generate import (check_hyperparameters, check_ssim_floor, default_bank, generate, generate_from,
+                                        prepare, purify_keys, read_recipe)
+    from avsim.attacks.targets import TARGET_NAMES
+
+    if args.from_json:
+        # Everything comes from the record; flags that would change the texture are refused.
+        given = [flag for flag, value in (("--method", args.method), ("--steps", args.steps),
+                                          ("--views-per-step", args.views_per_step), ("--set", args.set),
+                                          ("--detector", args.detector), ("--cameras", args.cameras),
+                                          ("--ssim-floor", args.ssim_floor), ("--seed", args.seed),
+                                          ("--purify", args.purify)) if value not in (None, [])]
+        if given:
+            raise ConfigError(f"--from regenerates a texture from its record alone; drop {', '.join(given)}")
+        read_recipe(args.from_json)  # a bad record fails before anything is rendered
+        _, record = generate_from(args.from_json, args.out, args.weights)
+    else:
+        if not args.method:
+            raise ConfigError("avsim attack generate needs --method NAME (or --from textures/NAME.json)")
+        hyper = {k: v for k, v in (("steps", args.steps), ("views_per_step", args.views_per_step)) if v is not None}
+        hyper.update(parse_set(args.set))
+        seed = 0 if args.seed is None else args.seed
+        check_seed(seed, "--seed")
+        check_hyperparameters(args.method, seed, hyper)
+        detector = args.detector or "detector"
+        if detector not in TARGET_NAMES:
+            raise ConfigError(f"--detector must be one of {', '.join(TARGET_NAMES)}, got '{detector}'")
+        ssim_floor = args.ssim_floor  # None: the method's own floor, or 0.7
+        if ssim_floor is not None:
+            check_ssim_floor(ssim_floor)
+        if not 0 < args.speed_kmh <= 200:
+            raise ConfigError(f"--speed-kmh must be in (0, 200], got {args.speed_kmh}")
+        # The spec checks the camera names, so a bad one fails before anything is rendered.
+        cameras = tuple(c.strip() for c in (args.cameras or "front").split(",") if c.strip())
+        bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
+        purify = purify_keys(args.purify or "none")
+        _, record = generate(args.method, args.out, seed=seed,
+                             setup=prepare(args.weights, bank_spec, detector, photometric, purify),
+                             hyperparameters=hyper, ssim_floor=ssim_floor, threads=args.threads)
+    print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
+          f"and {Path(args.out).with_suffix('.json')}")
+    return 0
+
+
+def _cmd_attack_eval(args: argparse.Namespace) -> int:
+    from avsim.attacks.disappearance import drive_by_frames
+    from avsim.attacks.drive_by_report import plot_confidence_by_detector
+    from avsim.attacks.evaluate import evaluate_texture, fig3_grid
+    from avsim.attacks.report import write_attack_report
+    from avsim.config import SimConfig
+    from avsim.world.scene import resolve_sign_texture
+    from avsim.world.textures import TEXTURE_DIR
+
+    signs = [s.strip() for s in args.signs.split(",") if s.strip()]
+    for sign in signs:
+        resolve_sign_texture(sign)  # fail on a bad name before rendering anything
+    detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
+    unknown = [d for d in detectors if d not in ("detector", "coco")]
+    if unknown or not detectors:
+        raise ConfigError(f"--detectors takes detector and/or coco, comma-separated; got '{args.detectors}'")
+    if args.drives < 0:
+        raise ConfigError(f"--drives must be >= 0, got {args.drives}")
+    placements = tuple(p.strip() for p in args.placements.split(","))
+    threshold = SimConfig().policy.conf_threshold
+    out = Path(args.out)
+    reports, drive_bys = [], {}
+    for sign in signs:
+        print(f"measuring {sign} ...", flush=True)
+        reports.append(evaluate_texture(sign, args.town, placements, threshold, detector=detectors[0]))
+        for detector in detectors if args.drives else ():
+            drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives)
+    fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, detector=detectors[0])
+    figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
+    path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_attack_sweep(args: argparse.Namespace) -> int:
+    from avsim.attacks.sweep import BUDGET_KEY, budget_sweep
+
+    if args.method not in BUDGET_KEY:
+        raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
+    try:
+        budgets = [float(b) for b in args.budgets.split(",")]
+    except ValueError:
+        raise ConfigError(f"--budgets expects comma-separated numbers, e.g. 0.05,0.1,0.2; got '{args.budgets}'") from None
+    protocol = None
+    if args.closed_loop:
+        from avsim.attacks.budget_success import load_protocol
+
+        protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
+    csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
+                                       protocol=protocol, workers=args.workers)
+    print(f"wrote {csv_path} and {plot_path}")
+    return 0
+
+
+def add_attack_commands(sub) -> None:
+    attack = sub.add_parser("attack", help="optimise adversarial stop-sign textures and measure them in renders")
+    asub = attack.add_subparsers(dest="attack_command", required=True)
+    gen = asub.add_parser("generate", help="optimise one texture against a detector (or remake one with --from)")
+    gen.add_argument("--method", help="chen, eykholt, lu_v2, lu_v3, yang, driveby or range_inflation")
+    add_output_argument(gen, "--out", kind=FILE, suffix=".png", companions=(".json",), required=True,
+                        help="PNG to write (a JSON record is written beside it)")
+    gen.add_argument("--from", dest="from_json", metavar="JSON",
+                     help="regenerate the texture a record describes (e.g. textures/driveby_detector.json): the same "
+                          "method, hyperparameters, seed, detector, view bank and budget")
+    gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
+                                        "default), coco (the COCO CenterNet port) or ensemble (both at once)")
+    gen.add_argument("--seed", type=int)
+    gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
+    gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
+    gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
+    gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
+    gen.add_argument("--cameras",
+                     help="comma-separated cameras whose views the texture is optimised over: front, side "
+                          "(default front; front,side is the adaptive attacker against the side-camera defence)")
+    gen.add_argument("--ssim-floor", type=float,
+                     help="camouflage budget: the saved PNG keeps at least this SSIM to the clean sign on its face "
+                          "(default: the method's ssim_floor hyperparameter if it has one, else 0.7); the change is "
+                          "scaled back until it does")
+    gen.add_argument("--purify", help="attack through the input purification defence: jpeg or median, at the "
+                                      "perception defaults (quality 75, 3 px kernel), by BPDA: the purifier runs "
+                                      "in the forward pass and is the identity in the backward pass (default none)")
+    gen.add_argument("--speed-kmh", type=float, default=85.0,
+                     help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
+    gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",
+                     help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
+    gen.set_defaults(func=_cmd_attack_generate)
+    ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
+    ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
+    ev.add_argument("--town", default="town07")
+    ev.add_argument("--placements", default="near,standard,far",
+                    help="placements of the fixed-distance tables (under the first of --detectors)")
+    ev.add_argument("--detectors", default="detector",
+                    help="comma-separated perceptions the drive-bys are measured under: detector, coco (default detector)")
+    ev.add_argument("--drives", type=int, default=6,
+                    help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
+                         "0 skips them)")
+    ev.add_argument("--drive-placement", default="standard", help="placement of the drive-bys (default standard)")
+    add_output_argument(ev, "--out", kind=FOLDER, default="results/attack_eval", help="report directory")
+    ev.set_defaults(func=_cmd_attack_eval)
+    sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")
+    sw.add_argument("--method", required=True)
+    sw.add_argument("--budgets", required=True, help="comma-separated budgets (eps, eps_peak or sticker area fraction)")
+    sw.add_argument("--steps", type=int, default=100, help="optimisation steps per budget")
+    sw.add_argument("--seed", type=int, default=0)
+    sw.add_argument("--weights", default="")
+    sw.add_argument("--closed-loop", metavar="FILE",
+                    help="also drive past every texture and the clean sign under this attack-success experiment "
+                         "file's \"clean\" cell and seeds (e.g. experiments/attacks/success_town07.toml), and report "
+                         "the success rate (Wilson 95%%), overrun and braking delay per budget")
+    sw.add_argument("--workers", type=int, default=1, choices=range(1, 65), metavar="N",
+                    help="closed-loop runs at once (default 1)")
+    add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
+    sw.set_defaults(func=_cmd_attack_sweep)
