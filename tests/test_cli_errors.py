@@ -72,6 +72,13 @@ CASES = {
     "attack eval --out a file": Case(["attack", "eval", "--out", "{tmp}/afile"], "not a folder", files={"afile": "x"}),
     "attack sweep --out in /proc": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--out", "/proc/a"],
                                         "cannot write in /proc"),
+    "attack sweep --closed-loop: no such file": Case(
+        ["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--closed-loop", "{tmp}/none.toml", "--out", "{tmp}/out"],
+        "none.toml"),
+    "attack sweep --closed-loop: no clean cell": Case(
+        ["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--closed-loop", "{tmp}/p.toml", "--out", "{tmp}/out"],
+        'no cell named "clean"',
+        files={"p.toml": 'title = "t"\nseeds = 2\n[[cells]]\nname = "attacked"\nscenario = { sign = "yang" }\n'}),
     "detector make-data --out a file": Case(["detector", "make-data", "--out", "{tmp}/afile"], "not a folder",
                                             files={"afile": "x"}),
     "detector train --out a folder": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/adir"], "is a folder",

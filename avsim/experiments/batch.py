@@ -20,7 +20,8 @@ Records, `on_record` and the progress bar are one code path for both.
 
 A record (`RunRecord.to_json_dict`, one line of `runs.jsonl`):
     experiment, cell, seed    where the run comes from
-    spec_hash                 sha256 of the run's resolved config (the same config, the same hash)
+    spec_hash                 sha256 of the run's resolved config and its sign texture's bytes
+                              (the same config on the same pixels, the same hash)
     status                    "ok" or "failed"; error: "ExceptionType: message" when failed
     result                    the `RunResult` JSON of `avsim run --json` (config included), or null
     trace                     per control step: sign_dist_m [m, bumper to sign], speed_mps,
@@ -43,11 +44,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from avsim.config import SimConfig
+from avsim.config import NO_SIGN, SimConfig
 from avsim.control.policies import STOP_CLASS
 from avsim.errors import ConfigError
 from avsim.metrics import StepRecord
 from avsim.workers import init_worker, terminate_workers
+from avsim.world.scene import resolve_sign_texture
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
 _TRACE_DECIMALS = 4
@@ -73,9 +75,27 @@ class RunSpec:
 
 
 def config_hash(config: SimConfig) -> str:
-    """sha256 of the config's canonical JSON: identical configs give identical hashes."""
-    canonical = json.dumps(config.to_dict(), sort_keys=True, separators=(",", ":"))
+    """sha256 of the config's canonical JSON and of the sign texture's bytes: identical configs on
+    identical pixels give identical hashes.
+
+    A config names its texture (`scenario.sign = "driveby_detector"`); the pixels are in the file.
+    A texture made again under the same name must change the hash, or `--resume` would reuse the
+    runs of the old one as if they were of the new one.
+    """
+    payload = {"config": config.to_dict(), "sign_texture_sha256": _sign_texture_sha256(config.scenario.sign)}
+    canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _sign_texture_sha256(sign: str) -> str | None:
+    """sha256 of the sign's texture file; None for no sign, or a texture that cannot be read (the
+    run itself then fails with the loader's one-line error, recorded as a failed run)."""
+    if sign == NO_SIGN:
+        return None
+    try:
+        return hashlib.sha256(resolve_sign_texture(sign).read_bytes()).hexdigest()
+    except (ConfigError, OSError):
+        return None
 
 
 def trace_of(records: Sequence[StepRecord], cameras: Iterable[str]) -> dict[str, list[float]]:

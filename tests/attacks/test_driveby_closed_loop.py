@@ -2,7 +2,7 @@
 
 Seed 0 of Table III's attacked `baseline` cell (Town07 standard, 85 km/h, the 40 m gate, sensor
 noise and lighting of seed 0) with `driveby_detector` in place of `yang`. Over 20 seeds it runs
-past in 5 (`experiments/attacks/driveby_detector_town07.toml`); seed 0 is one of them.
+past in all 20 (`experiments/attacks/driveby_detector_town07.toml`), seed 0 among them.
 """
 
 from pathlib import Path

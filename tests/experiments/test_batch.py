@@ -1,10 +1,12 @@
 """Batches of runs: records, traces, failure isolation, and the same results in worker processes."""
 
+import numpy as np
 import pytest
 
 from avsim.errors import ConfigError
 from avsim.experiments.batch import RunSpec, config_hash, execute, failed_record, run_batch, worker_env
 from avsim.loop import run_config
+from avsim.world.textures import save_texture_png
 from helpers import make_config
 
 # Short oracle runs: the sign is in range within a second, the car stops in a few.
@@ -20,6 +22,21 @@ def _spec(cell: str, seed: int = 0, **sections) -> RunSpec:
 def test_config_hash_is_stable_and_tells_configs_apart():
     assert config_hash(make_config()) == config_hash(make_config())
     assert config_hash(make_config()) != config_hash(make_config(scenario={"seed": 1}))
+
+
+def test_a_texture_made_again_under_the_same_name_changes_the_hash(tmp_path):
+    # --resume reuses a run by its hash; a config names its texture, so the pixels must count too.
+    texture = tmp_path / "remade.png"
+    rgb = np.full((64, 64, 3), 200, np.uint8)
+    save_texture_png(texture, rgb)
+    config = make_config(scenario={"sign": str(texture)})
+    before = config_hash(config)
+    assert config_hash(config) == before
+    rgb[10:20, 10:20] = 0
+    save_texture_png(texture, rgb)
+    assert config_hash(config) != before
+    # A sign-free road has no texture to hash, and hashes as before.
+    assert config_hash(make_config(scenario={"sign": "none"})) == config_hash(make_config(scenario={"sign": "none"}))
 
 
 def test_a_record_holds_the_result_and_a_trace_per_camera_the_policy_renders():
