@@ -320,6 +320,12 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         raise ConfigError(f"--from {path}: no such file; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
     except (json.JSONDecodeError, KeyError, TypeError, AttributeError) as exc:
         raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` ({exc!r})") from None
+    if "weights_sha256" not in record:
+        # chen, lu_v2, lu_v3, yang, adaptive and yang_eps* were made before the drive-by rework; the
+        # generator that wrote them (its view bank, EOT and hyperparameters) is gone.
+        raise ConfigError(f"--from {path}: this record was written by the generator before the drive-by rework "
+                          "(it names no weights_sha256) and today's generator cannot replay it; make a new texture "
+                          f"with `avsim attack generate --method {method} --out NEW.png`")
     if detector not in TARGET_NAMES:
         raise ConfigError(f"--from {path}: unknown detector {detector!r}; choose one of: {', '.join(TARGET_NAMES)}")
     check_hyperparameters(method, seed, hyper)
@@ -327,7 +333,7 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         purify_config(purify)
     except ConfigError as exc:
         raise ConfigError(f"--from {path}: purify: {exc}") from None
-    hashes = record.get("weights_sha256") or {record.get("detector_weights", "sign_detector.pt"): record.get("detector_weights_sha256")}
+    hashes = dict(record["weights_sha256"])
     return Recipe(method, seed, hyper, detector, _dataclass_from(ViewBankSpec, bank, f"--from {path}: view_bank"),
                   _dataclass_from(PhotometricRanges, photometric, f"--from {path}: photometric"),
                   float(record.get("ssim_floor", SSIM_FLOOR)), int(record.get("torch_threads", DEFAULT_THREADS)), hashes,

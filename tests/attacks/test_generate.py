@@ -14,6 +14,7 @@ from avsim.attacks.generate import (apply_change, clean_stop_texture, downsample
 from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC
 from avsim.attacks.view_bank import ViewBankSpec, closed_loop_bank_spec
 from avsim.errors import ConfigError
+from avsim.world.textures import TEXTURE_DIR
 
 TINY_BANK = ViewBankSpec(towns=("town07",), placements=("standard",), lightings_per_cell=1, views_per_group=3,
                          dist_range_m=(15.0, 40.0), seed=3)
@@ -88,6 +89,19 @@ def test_a_record_from_elsewhere_is_refused_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.splitlines()
     assert code == 2 and len(err) == 1 and "not a texture record" in err[0]
     assert not (tmp_path / "x.png").exists()
+
+
+LEGACY_RECORDS = sorted(p.name for p in TEXTURE_DIR.glob("*.json") if "weights_sha256" not in json.loads(p.read_text()))
+
+
+@pytest.mark.parametrize("name", LEGACY_RECORDS)
+def test_a_record_from_before_the_rework_says_it_cannot_be_replayed(tmp_path, capsys, name):
+    # These textures ship, but the generator that made them is gone: --from says so instead of
+    # failing on a hyperparameter today's attack no longer takes (yang's mean_bound).
+    code = cli.main(["attack", "generate", "--from", str(TEXTURE_DIR / name), "--out", str(tmp_path / "x.png")])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1 and "before the drive-by rework" in err[0]
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("argv, mention", [
