@@ -321,8 +321,8 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
     except (json.JSONDecodeError, KeyError, TypeError, AttributeError) as exc:
         raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` ({exc!r})") from None
     if "weights_sha256" not in record:
-        # chen, lu_v2, lu_v3, yang, adaptive and yang_eps* were made before the drive-by rework; the
-        # generator that wrote them (its view bank, EOT and hyperparameters) is gone.
+        # A record from before the drive-by rework: the generator that wrote it (its view bank, EOT
+        # and hyperparameters) is gone. No shipped record is one any more; a user's may be.
         raise ConfigError(f"--from {path}: this record was written by the generator before the drive-by rework "
                           "(it names no weights_sha256) and today's generator cannot replay it; make a new texture "
                           f"with `avsim attack generate --method {method} --out NEW.png`")
