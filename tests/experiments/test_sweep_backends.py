@@ -20,6 +20,7 @@ def _without_wall_time(records: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k != "wall_s"} for r in records]
 
 
+@pytest.mark.slow  # 20 s: starts a local Ray cluster
 def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(tmp_path):
     pytest.importorskip("ray")
     sweep = load_sweep(SMOKE)
@@ -34,6 +35,7 @@ def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(t
     assert "with 2 Ray workers" in (on_ray / "summary.md").read_text()
 
 
+@pytest.mark.slow  # 10 s: starts a local Ray cluster
 def test_a_ray_worker_that_dies_is_retried_then_recorded_as_failed_and_the_batch_goes_on(monkeypatch):
     pytest.importorskip("ray")
     from avsim.experiments import batch

@@ -58,6 +58,7 @@ def _without_wall_time(records: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k != "wall_s"} for r in records]
 
 
+@pytest.mark.slow  # 23 s: a whole sweep twice
 def test_a_killed_sweep_resumes_to_the_results_of_one_never_stopped(tmp_path):
     reference = tmp_path / "reference"
     assert cli.main(["sweep", str(SMOKE), "--out", str(reference), "--workers", "1", "--no-progress"]) == 0
