@@ -92,16 +92,40 @@ def test_the_attack_experiment_files_load_with_their_seeds():
     from avsim.experiments.spec import load_experiment
 
     folder = Path(__file__).resolve().parents[2] / "experiments" / "attacks"
-    seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 10, "range_inflation_adjusted.toml": 20,
-             "driveby_detector_town07.toml": 20}
+    seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 20, "success_coco_towns.toml": 5,
+             "range_inflation_adjusted.toml": 20, "driveby_detector_town07.toml": 20}
     assert sorted(p.name for p in folder.glob("*.toml")) == sorted(seeds)
     for name, n in seeds.items():
         experiment = load_experiment(folder / name)
         assert experiment.seeds == n and experiment.report == "attack_success"
         assert any(c.config.scenario.sign == "clean" for c in experiment.cells)  # the pair for the braking delay
-    towns = load_experiment(folder / "success_towns.toml")
-    cells = {(c.config.scenario.town, c.config.scenario.placement) for c in towns.cells}
-    assert len(cells) == 8 and ("town07", "standard") not in cells
+    for name in ("success_towns.toml", "success_coco_towns.toml"):
+        towns = load_experiment(folder / name)
+        cells = {(c.config.scenario.town, c.config.scenario.placement) for c in towns.cells}
+        assert len(cells) == 8 and ("town07", "standard") not in cells
+
+
+def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_under_both_detectors():
+    """Issue 14: closed-loop success per texture and detector, in Town07 standard and the other 8 cells."""
+    from pathlib import Path
+
+    from avsim.experiments.spec import load_experiment
+
+    root = Path(__file__).resolve().parents[2]
+    budget_points = {"yang_eps0.09", "yang_eps0.18"}  # yang at smaller budgets: the safety map's axis, not attacks
+    shipped = {"clean"} | {p.stem for p in (root / "textures").glob("*.json")} - budget_points
+    assert len(shipped) == 15
+    for name, kind, places in (("success_town07.toml", "detector", 1), ("success_towns.toml", "detector", 8),
+                               ("success_coco.toml", "coco", 1), ("success_coco_towns.toml", "coco", 8)):
+        experiment = load_experiment(root / "experiments" / "attacks" / name)
+        assert {c.config.perception.kind for c in experiment.cells} == {kind}
+        assert {c.config.policy.name for c in experiment.cells} == {"baseline"}
+        signs_by_place: dict = {}
+        for c in experiment.cells:
+            place = (c.config.scenario.town, c.config.scenario.placement)
+            signs_by_place.setdefault(place, set()).add(c.config.scenario.sign)
+        assert len(signs_by_place) == places, name
+        assert all(signs == shipped for signs in signs_by_place.values()), name
 
 
 def test_a_texture_source_names_its_detector_and_the_purification_it_went_through():
