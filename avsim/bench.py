@@ -12,7 +12,8 @@ import mujoco
 
 from avsim.config import COCO_INPUTS, COCO_PRECISIONS, SimConfig, with_overrides
 from avsim.gym.bench import print_env_rows
-from avsim.loop import ClosedLoop, run_config
+from avsim.loop import ClosedLoop
+from avsim.runner import run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
 
 

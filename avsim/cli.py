@@ -119,7 +119,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
-    from avsim.experiments.leaderboard import DEFAULT_FILE, load_leaderboard, run_leaderboard
+    from avsim.experiments.leaderboard import DEFAULT_FILE, load_leaderboard
+    from avsim.experiments.leaderboard_run import run_leaderboard
 
     board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,

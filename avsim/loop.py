@@ -188,15 +188,3 @@ class ClosedLoop:
     def close(self) -> None:
         self.perception.close()
         self.rig.close()
-
-
-def run_config(config: SimConfig) -> tuple[RunResult, float]:
-    """Run `config` to the end; returns the result and the wall-clock time [s].
-
-    The same run as `avsim.runner.run_recorded` without recorders (imported here: the runner
-    builds on this module).
-    """
-    from avsim.runner import run_recorded
-
-    output = run_recorded(config)
-    return output.result, output.wall_s

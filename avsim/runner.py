@@ -3,6 +3,7 @@
     output = run_recorded(config, rrd_path="run.rrd", mp4_path=None)
     output.result        # RunResult, as written by `avsim run --json`
     output.records       # one StepRecord per control step (state at sensing time)
+    result, wall_s = run_config(config)   # the same run, no recorders
 
 Recording never changes the run: the recorders only read the loop after each step. Each
 file appears only when the run completes (the recorders write to a temporary name and
@@ -55,3 +56,9 @@ def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None
     finally:
         loop.close()
     return RunOutput(result, tuple(loop.records), time.perf_counter() - start)
+
+
+def run_config(config: SimConfig) -> tuple[RunResult, float]:
+    """Run `config` to the end without recorders; returns the result and the wall-clock time [s]."""
+    output = run_recorded(config)
+    return output.result, output.wall_s

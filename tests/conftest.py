@@ -9,7 +9,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import pytest  # noqa: E402
 
-from avsim.loop import run_config  # noqa: E402
+from avsim.runner import run_config  # noqa: E402
 from avsim.metrics import RunResult  # noqa: E402
 from helpers import make_config  # noqa: E402
 

@@ -7,6 +7,10 @@ would shadow a `from helpers import ...`.
 from __future__ import annotations
 
 from avsim.config import SimConfig, with_overrides
+from avsim.experiments.run_task import RunSpec
+
+# Short oracle runs: the sign is in range within a second, the car stops in a few.
+SHORT_RUN = {"speed_kmh": 40.0, "start_speed_kmh": 40.0, "start_dist_m": 50.0}
 
 
 def make_config(**sections) -> SimConfig:
@@ -17,3 +21,10 @@ def make_config(**sections) -> SimConfig:
     """
     sections = {**sections, "perception": {"kind": "oracle", **sections.get("perception", {})}}
     return with_overrides(SimConfig(), sections)
+
+
+def short_run_spec(cell: str, seed: int = 0, **sections) -> RunSpec:
+    """A batch spec of a short oracle run (`SHORT_RUN`) at `seed`, with the given config sections."""
+    sections.setdefault("scenario", {})
+    sections["scenario"] = {**SHORT_RUN, "seed": seed, **sections["scenario"]}
+    return RunSpec("short", cell, seed, make_config(**sections))

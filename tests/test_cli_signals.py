@@ -23,7 +23,7 @@ import pytest
 from avsim import cli
 from avsim.config import SimConfig, with_overrides
 from avsim.experiments.results_file import read_records
-from avsim.loop import run_config
+from avsim.runner import run_config
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"

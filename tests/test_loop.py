@@ -7,7 +7,8 @@ import pytest
 
 from avsim.control.policies import POLICIES
 from avsim.errors import PhysicsError
-from avsim.loop import ClosedLoop, run_config
+from avsim.loop import ClosedLoop
+from avsim.runner import run_config
 from avsim.world.towns import PLACEMENTS, TOWNS
 from helpers import make_config
 

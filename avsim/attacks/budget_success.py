@@ -18,8 +18,9 @@ from typing import Any
 
 from avsim.attacks.success import Success, success
 from avsim.config import with_overrides
-from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.batch import run_batch
 from avsim.experiments.results_file import JsonlWriter
+from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import Cell, Experiment, load_experiment
 
 CLEAN_CELL = "clean"

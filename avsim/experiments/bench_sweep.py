@@ -12,7 +12,7 @@ nothing asserts.
     scaling       runs/min with 2 workers / (2 x runs/min with 1 worker); 1.0 is perfect. Measured
                   twice: against one worker that renders on every core (what `--workers 1` does),
                   and against one worker on one core's share, which is what each of two workers
-                  gets (`batch.worker_env`): the second is the pool's scaling at a fixed share.
+                  gets (`run_task.worker_env`): the second is the pool's scaling at a fixed share.
     Ray overhead  Ray's wall time (cluster start included) minus the local pool's, both at 2 workers [s]
     peak memory   highest peak resident set (VmHWM) of a process that ran the runs [MiB]; with 1 local
                   worker the runs share this process, so it includes the driver
@@ -32,7 +32,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.batch import run_batch
+from avsim.experiments.run_task import RunSpec
 
 SMOKE_SWEEP = Path(__file__).resolve().parents[2] / "experiments" / "sweeps" / "sweep_smoke.toml"
 _MIB = 1024 * 1024
@@ -142,7 +143,7 @@ def time_local(specs: Sequence[RunSpec], workers: int) -> Timing:
 
 def time_one_core(specs: Sequence[RunSpec]) -> Timing:
     """The specs in one spawned worker given one core's share, as each of two workers gets on
-    two cores (`batch.worker_env`): the baseline for scaling at a fixed share per worker."""
+    two cores (`run_task.worker_env`): the baseline for scaling at a fixed share per worker."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 

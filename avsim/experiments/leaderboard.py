@@ -37,8 +37,8 @@ ranges, registry names, sign textures, and that every safety run requires a stop
 availability run does. Runs with the same config (a placeholder adaptive texture that equals
 the strongest attack) run once and count once per defence.
 
-`run_leaderboard` runs the unique configs through the sweep machinery (`resumable`: a pool or
-Ray, one fsynced line per run, `--resume`), then writes into its folder:
+`avsim.experiments.leaderboard_run.run_leaderboard` runs the unique configs through the sweep
+machinery (`resumable`: a pool or Ray, one fsynced line per run, `--resume`), then writes into its folder:
     leaderboard.toml   the file as it was run
     results.jsonl      one record per unique config (`avsim.experiments.batch`)
     manifest.json      command, workers, wall time, runs, failures, versions
@@ -48,21 +48,16 @@ Ray, one fsynced line per run, `--resume`), then writes into its folder:
 
 from __future__ import annotations
 
-import datetime as dt
-import shutil
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
-from avsim.errors import ConfigError, RunsFailedError
-from avsim.experiments.batch import RunSpec, check_backend
-from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.errors import ConfigError
+from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
-from avsim.metrics import write_json_atomic
 
 TOP_LEVEL_KEYS = ("title", "defaults", "vary", "conditions", "defences", "places", "availability")
 CONDITIONS = ("clean", "strongest", "adaptive")  # "adaptive" is each defence's own
@@ -324,54 +319,3 @@ def _check_runs(board: Leaderboard) -> None:
             if run.kind == AVAILABILITY and required:
                 raise ConfigError("this availability scenario requires a stop (a stop sign facing the car); give it "
                                   "scenario.sign = \"none\" or a stop sign turned to the cross street")
-
-
-# ---- running ---------------------------------------------------------------------------------
-
-def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
-                    resume: bool = False, progress: bool = True, backend: str = "local",
-                    address: str | None = None) -> Path:
-    """Run the board's matrix into `out_dir` (module docstring); returns `out_dir`."""
-    from avsim.experiments.leaderboard_report import write_leaderboard_report
-    from avsim.experiments.reproduce import _versions, resolve_workers
-
-    check_backend(backend, address)
-    out = Path(out_dir)
-    results_path = out / RESULTS_FILE
-    existing = existing_records(results_path, resume)
-    workers = resolve_workers(workers, address)
-    runs = board.runs(quick)
-    specs = unique_specs(board, runs)
-    options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
-               f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
-    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)])
-
-    started = time.perf_counter()
-    started_at = dt.datetime.now().astimezone()
-    out.mkdir(parents=True, exist_ok=True)
-    if board.path.resolve() != (out / "leaderboard.toml").resolve():
-        shutil.copy2(board.path, out / "leaderboard.toml")
-    records, ran = run_resumable(specs, results_path, existing, resume_command=f"{command} --resume", workers=workers,
-                                 progress=progress, description="leaderboard", backend=backend, address=address)
-    manifest = {
-        "command": command + (" --resume" if resume else ""),
-        "started_at": started_at.isoformat(timespec="seconds"),
-        "title": board.title,
-        "wall_s": round(time.perf_counter() - started, 1),
-        "backend": backend,
-        "address": address,
-        "workers": workers,
-        "quick": quick,
-        "runs": len(runs),
-        "configs": len(specs),
-        "ran": ran,
-        "reused": len(specs) - ran,
-        "failed": sum(1 for r in records if r["status"] == "failed"),
-        "versions": _versions(),
-    }
-    write_json_atomic(out / "manifest.json", manifest)
-    write_leaderboard_report(out, board, runs, records, manifest)
-    if records and manifest["failed"] == len(records):
-        first = next(r["error"] for r in records if r["status"] == "failed")
-        raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); see {out / 'leaderboard.md'}")
-    return out

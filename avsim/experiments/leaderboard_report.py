@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.control.policies import POLICIES
-from avsim.experiments.batch import config_hash
+from avsim.experiments.run_task import config_hash
 from avsim.experiments.leaderboard import AVAILABILITY, CONDITIONS, SAFETY, Leaderboard, LeaderboardRun
 from avsim.metrics import PHANTOM_BRAKE_LEVEL, STOPPED_BEFORE_SIGN, is_phantom_brake, write_text_atomic
 from avsim.perception.factory import networks_per_frame

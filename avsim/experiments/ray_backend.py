@@ -6,7 +6,7 @@
 
 Why: the local pool stops at one machine's cores; a Ray cluster spreads the same runs over many.
 
-Each task is `avsim.experiments.batch.execute(spec, root)`, the function a local pool worker
+Each task is `avsim.experiments.run_task.execute(spec, root)`, the function a local pool worker
 runs, in a Ray worker process: a fresh Python process, so it builds its own MuJoCo model and
 EGL context as a spawned pool worker does. A task asks for one CPU (a run is single-threaded,
 see `PerceptionConfig.threads`), so a node runs as many at once as it has CPUs. The spec
@@ -37,6 +37,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from avsim.errors import ConfigError
+from avsim.experiments.run_task import execute, failed_record, worker_env
 
 INSTALL_HINT = "pip install 'avsim[ray]'"
 # Times Ray reruns a task whose worker process died before the run is recorded as failed.
@@ -86,9 +87,7 @@ def session(address: str | None, workers: int | None) -> Iterator[Any]:
         if workers is None or workers < 1:
             raise ConfigError(f"a local Ray cluster needs workers >= 1, got {workers}")
         # Its workers inherit this process's environment, MUJOCO_GL included, plus their
-        # share of the cores for the rasteriser (`batch.worker_env`).
-        from avsim.experiments.batch import worker_env
-
+        # share of the cores for the rasteriser (`run_task.worker_env`).
         ray.init(num_cpus=workers, include_dashboard=False, runtime_env={"env_vars": worker_env(workers)})
     else:
         # A remote node has its own environment: send the renderer this driver chose (avsim defaults to EGL).
@@ -107,8 +106,6 @@ def ray_results(specs: Sequence[Any], root: str | None, *, workers: int | None,
     workers: the local cluster's CPUs when address is None; with an address, at most that many
     runs in flight (None: every run is submitted and the cluster's CPUs decide).
     """
-    from avsim.experiments.batch import execute, failed_record
-
     with session(address, workers) as ray:
         task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute)
         in_flight = len(specs) if workers is None else workers

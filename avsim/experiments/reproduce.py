@@ -19,14 +19,14 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import os
-import platform
 import shutil
 import time
 from pathlib import Path
 
 from avsim.errors import ConfigError, Interrupted, RunsFailedError
-from avsim.experiments.batch import RunSpec, check_backend, run_batch
+from avsim.experiments.batch import check_backend, resolve_workers, run_batch, software_versions
 from avsim.experiments.results_file import JsonlWriter, rewrite
+from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
 
@@ -34,21 +34,6 @@ EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
 # The study's tables and figure, then what avsim adds beyond the study; report order.
 STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_attacked_defended",
                      "fig3_detection", "adaptive_attacker", "wet_road", "sensitivity", "coco_detector")
-
-
-def default_workers() -> int:
-    """One worker per core: each run is single-threaded (see `PerceptionConfig.threads`)."""
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
-
-
-def resolve_workers(workers: int | None, address: str | None) -> int | None:
-    """The runs at once for a batch: `workers`, or one per core when neither it nor a Ray
-    cluster address (whose CPUs then decide) is given; a one-line ConfigError below 1."""
-    if workers is None and address is None:
-        workers = default_workers()
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
-    return workers
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False) -> list[Experiment]:
@@ -135,7 +120,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         "failed": sum(r["status"] == "failed" for r in records),
         "experiments": {e.path.stem: {"title": e.title, "seeds": e.seeds, "cells": [c.name for c in e.cells]}
                         for e in experiments},
-        "versions": _versions(),
+        "versions": software_versions(),
     }
     write_json_atomic(out / "manifest.json", manifest)
     write_report(out, experiments, records, manifest)
@@ -148,12 +133,3 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
 def _mkdir(path: Path) -> Path:
     path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-def _versions() -> dict[str, str]:
-    import mujoco
-    import numpy
-    import torch
-
-    return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
-            "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores"}

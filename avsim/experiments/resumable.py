@@ -23,8 +23,9 @@ from pathlib import Path
 from typing import Any
 
 from avsim.errors import ConfigError, Interrupted
-from avsim.experiments.batch import RunSpec, run_batch
+from avsim.experiments.batch import run_batch
 from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
+from avsim.experiments.run_task import RunSpec
 
 RESULTS_FILE = "results.jsonl"
 Record = dict[str, Any]

@@ -55,8 +55,9 @@ from typing import Any
 
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError, RunsFailedError
-from avsim.experiments.batch import RunSpec, check_backend
+from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
 
@@ -211,7 +212,6 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is
     off, or the backend cannot run (Ray not installed).
     """
-    from avsim.experiments.reproduce import _versions, resolve_workers
     from avsim.experiments.sweep_report import write_sweep_report
 
     check_backend(backend, address)
@@ -254,7 +254,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
         "failed": sum(1 for r in records if r["status"] == "failed"),
         "grid": {key: list(values) for key, values in sweep.grid},
         "seeds": sweep.seeds,
-        "versions": _versions(),
+        "versions": software_versions(),
         "history": history,
     }
     write_json_atomic(out / "manifest.json", manifest)

@@ -11,7 +11,7 @@ import pytest
 
 from avsim.config import VehicleConfig, with_overrides
 from avsim.experiments import load_experiment
-from avsim.loop import run_config
+from avsim.runner import run_config
 from avsim.vehicle.brake_test import brake_test
 
 EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"

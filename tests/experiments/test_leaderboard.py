@@ -9,8 +9,8 @@ import pytest
 
 from avsim.cli import main
 from avsim.errors import ConfigError
-from avsim.experiments.leaderboard import (AVAILABILITY, DEFAULT_FILE, SAFETY, load_leaderboard, run_leaderboard,
-                                           unique_specs)
+from avsim.experiments.leaderboard import AVAILABILITY, DEFAULT_FILE, SAFETY, load_leaderboard, unique_specs
+from avsim.experiments.leaderboard_run import run_leaderboard
 from avsim.experiments.leaderboard_report import Results, pareto_front, rows
 from avsim.experiments.results_file import read_records
 

@@ -18,7 +18,7 @@ import pytest
 
 from avsim.config import VehicleConfig
 from avsim.experiments import load_experiment
-from avsim.loop import run_config
+from avsim.runner import run_config
 from avsim.metrics import RunResult
 from avsim.vehicle.brake_test import brake_test
 

@@ -174,16 +174,16 @@ def test_a_second_sweep_into_the_same_folder_needs_resume_which_reuses_the_ok_ru
 
 def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_again_on_resume(smoke_out, tmp_path,
                                                                                               monkeypatch):
-    import avsim.runner
+    from avsim.experiments import run_task
 
-    real = avsim.runner.run_recorded
+    real = run_task.run_recorded
 
     def renderer_lost_at_60(config, **kwargs):
         if config.scenario.speed_kmh == 60.0:
             raise RuntimeError("EGL context lost")
         return real(config, **kwargs)
 
-    monkeypatch.setattr(avsim.runner, "run_recorded", renderer_lost_at_60)  # --workers 1 runs in this process
+    monkeypatch.setattr(run_task, "run_recorded", renderer_lost_at_60)  # --workers 1 runs in this process
     out = tmp_path / "failing"
     assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]) == 0
     records = read_records(out / "results.jsonl")

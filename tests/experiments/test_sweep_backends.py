@@ -38,15 +38,15 @@ def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(t
 @pytest.mark.slow  # 10 s: starts a local Ray cluster
 def test_a_ray_worker_that_dies_is_retried_then_recorded_as_failed_and_the_batch_goes_on(monkeypatch):
     pytest.importorskip("ray")
-    from avsim.experiments import batch
+    from avsim.experiments import batch, ray_backend, run_task
 
     specs = load_sweep(SMOKE).specs()[:2]
     # Sent to the workers by value (a lambda): the process exits mid-task, as in a segfault or an OOM kill.
-    monkeypatch.setattr(batch, "execute", lambda spec, root=None: os._exit(1))
+    monkeypatch.setattr(ray_backend, "execute", lambda spec, root=None: os._exit(1))
     records = batch.run_batch(specs, workers=2, backend="ray", progress=False)
     assert [(r["cell"], r["status"]) for r in records] == [(s.cell, "failed") for s in specs]
     assert all(r["error"].startswith("WorkerCrashedError: ") and "\n" not in r["error"] for r in records)
-    assert records[0].keys() == batch.failed_record(specs[0], "x").keys()
+    assert records[0].keys() == run_task.failed_record(specs[0], "x").keys()
 
 
 def test_without_ray_the_ray_backend_is_one_line_naming_the_install_and_writes_nothing(tmp_path, capsys, monkeypatch):

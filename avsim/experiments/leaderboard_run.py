@@ -1,0 +1,69 @@
+"""Run a leaderboard: its unique configs as one resumable batch, then its manifest and report.
+
+    board = load_leaderboard("experiments/leaderboards/defences.toml")
+    run_leaderboard(board, "results/leaderboard", workers=2)
+
+Apart from `avsim.experiments.leaderboard` (the file's format and its matrix) because the report
+(`avsim.experiments.leaderboard_report`) reads that matrix, and running writes the report.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import shutil
+import time
+from pathlib import Path
+
+from avsim.errors import RunsFailedError
+from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.leaderboard import Leaderboard, unique_specs
+from avsim.experiments.leaderboard_report import write_leaderboard_report
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.metrics import write_json_atomic
+
+
+def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
+                    resume: bool = False, progress: bool = True, backend: str = "local",
+                    address: str | None = None) -> Path:
+    """Run the board's matrix into `out_dir` (`avsim.experiments.leaderboard`'s docstring lists what
+    it writes there); returns `out_dir`."""
+    check_backend(backend, address)
+    out = Path(out_dir)
+    results_path = out / RESULTS_FILE
+    existing = existing_records(results_path, resume)
+    workers = resolve_workers(workers, address)
+    runs = board.runs(quick)
+    specs = unique_specs(board, runs)
+    options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
+               f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
+    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)])
+
+    started = time.perf_counter()
+    started_at = dt.datetime.now().astimezone()
+    out.mkdir(parents=True, exist_ok=True)
+    if board.path.resolve() != (out / "leaderboard.toml").resolve():
+        shutil.copy2(board.path, out / "leaderboard.toml")
+    records, ran = run_resumable(specs, results_path, existing, resume_command=f"{command} --resume", workers=workers,
+                                 progress=progress, description="leaderboard", backend=backend, address=address)
+    manifest = {
+        "command": command + (" --resume" if resume else ""),
+        "started_at": started_at.isoformat(timespec="seconds"),
+        "title": board.title,
+        "wall_s": round(time.perf_counter() - started, 1),
+        "backend": backend,
+        "address": address,
+        "workers": workers,
+        "quick": quick,
+        "runs": len(runs),
+        "configs": len(specs),
+        "ran": ran,
+        "reused": len(specs) - ran,
+        "failed": sum(1 for r in records if r["status"] == "failed"),
+        "versions": software_versions(),
+    }
+    write_json_atomic(out / "manifest.json", manifest)
+    write_leaderboard_report(out, board, runs, records, manifest)
+    if records and manifest["failed"] == len(records):
+        first = next(r["error"] for r in records if r["status"] == "failed")
+        raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); see {out / 'leaderboard.md'}")
+    return out

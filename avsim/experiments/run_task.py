@@ -1,0 +1,143 @@
+"""One run of a batch, as a worker process executes it: the spec, the run, and its JSON record.
+
+    record = execute(RunSpec("table3_stop_positions", "baseline, Town07 standard", 0, config), root)
+
+Both batch backends (`avsim.experiments.batch`'s local pool and `avsim.experiments.ray_backend`)
+run `execute` for each spec; it lives here, apart from both, because each backend needs it and the
+batch needs both backends.
+
+A record (`RunRecord.to_json_dict`, one line of `runs.jsonl`):
+    experiment, cell, seed    where the run comes from
+    spec_hash                 sha256 of the run's resolved config and its sign texture's bytes
+                              (the same config on the same pixels, the same hash)
+    status                    "ok" or "failed"; error: "ExceptionType: message" when failed
+    result                    the `RunResult` JSON of `avsim run --json` (config included), or null
+    trace                     per control step: sign_dist_m [m, bumper to sign], speed_mps,
+                              brake [0..1], and per camera the policy rendered, <camera>_conf:
+                              its best stop-sign confidence (0 when it reported none)
+    rrd                       path of the run's rerun recording, relative to the batch folder
+    wall_s                    wall-clock time of the run [s]
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import traceback
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from avsim.config import NO_SIGN, SimConfig
+from avsim.control.policies import POLICIES, STOP_CLASS
+from avsim.errors import ConfigError
+from avsim.metrics import StepRecord
+from avsim.runner import run_recorded
+from avsim.world.scene import resolve_sign_texture
+
+# Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
+_TRACE_DECIMALS = 4
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a batch: where it comes from, its config, and where its recording goes.
+
+    rrd_path: absolute path of the `.rrd` to write, or None for no recording.
+    """
+
+    experiment: str
+    cell: str
+    seed: int
+    config: SimConfig
+    rrd_path: str | None = None
+
+    @property
+    def spec_hash(self) -> str:
+        return config_hash(self.config)
+
+
+def config_hash(config: SimConfig) -> str:
+    """sha256 of the config's canonical JSON and of the sign texture's bytes: identical configs on
+    identical pixels give identical hashes.
+
+    A config names its texture (`scenario.sign = "driveby_detector"`); the pixels are in the file.
+    A texture made again under the same name must change the hash, or `--resume` would reuse the
+    runs of the old one as if they were of the new one.
+    """
+    payload = {"config": config.to_dict(), "sign_texture_sha256": _sign_texture_sha256(config.scenario.sign)}
+    canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _sign_texture_sha256(sign: str) -> str | None:
+    """sha256 of the sign's texture file; None for no sign, or a texture that cannot be read (the
+    run itself then fails with the loader's one-line error, recorded as a failed run)."""
+    if sign == NO_SIGN:
+        return None
+    try:
+        return hashlib.sha256(resolve_sign_texture(sign).read_bytes()).hexdigest()
+    except (ConfigError, OSError):
+        return None
+
+
+def trace_of(records: Sequence[StepRecord], cameras: Iterable[str]) -> dict[str, list[float]]:
+    """The per-step series a report plots (see the module docstring for the keys)."""
+    trace: dict[str, list[float]] = {
+        "sign_dist_m": [round(r.sign_dist_m, _TRACE_DECIMALS) for r in records],
+        "speed_mps": [round(r.speed_mps, _TRACE_DECIMALS) for r in records],
+        "brake": [round(r.brake, _TRACE_DECIMALS) for r in records],
+    }
+    for camera in cameras:
+        trace[f"{camera}_conf"] = [
+            round(max((d.confidence for d in r.detections if d.camera == camera and d.class_name == STOP_CLASS),
+                      default=0.0), _TRACE_DECIMALS)
+            for r in records]
+    return trace
+
+
+def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
+    """Run one spec and return its record (a failure is a record too). Runs in a worker process.
+
+    root: the batch folder; the record's `rrd` path is written relative to it.
+    """
+    record = _blank_record(spec)
+    try:
+        output = run_recorded(spec.config, rrd_path=spec.rrd_path)
+    except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
+        last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+        where = f" (at {Path(last.filename).name}:{last.lineno})" if last else ""
+        return failed_record(spec, f"{type(exc).__name__}: {exc}{where}")
+    # The policy classes declare the cameras they render; the trace has a series for each.
+    cameras = POLICIES.get(spec.config.policy.name).cameras
+    record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),
+                  wall_s=round(output.wall_s, 3))
+    if spec.rrd_path:
+        record["rrd"] = os.path.relpath(spec.rrd_path, root) if root else spec.rrd_path
+    return record
+
+
+def _blank_record(spec: RunSpec) -> dict[str, Any]:
+    return {"experiment": spec.experiment, "cell": spec.cell, "seed": spec.seed, "spec_hash": spec.spec_hash,
+            "status": "ok", "error": None, "result": None, "trace": None, "rrd": None, "wall_s": None}
+
+
+def failed_record(spec: RunSpec, error: str) -> dict[str, Any]:
+    """The record of a run that did not finish; error: "ExceptionType: message"."""
+    return {**_blank_record(spec), "status": "failed", "error": error}
+
+
+def worker_env(workers: int) -> dict[str, str]:
+    """Environment for one of `workers` run processes on this machine: its share of the cores.
+
+    Mesa's llvmpipe rasterises on as many threads as the machine has cores (LP_NUM_THREADS);
+    with one such renderer per worker the workers' threads fight over the cores. Each worker
+    gets cores // workers threads instead. The thread count does not change a pixel: the
+    image is cut into tiles that each thread draws the same way. A user's own
+    LP_NUM_THREADS wins.
+    """
+    if "LP_NUM_THREADS" in os.environ:
+        return {}
+    return {"LP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // max(1, workers)))}

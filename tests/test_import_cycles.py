@@ -1,0 +1,99 @@
+"""No import cycle among avsim's modules, not even one hidden by an import inside a function.
+
+A function-level import that closes a cycle hides it from Python's import machinery but not from a
+reader: the two modules still need each other, and the shared piece belongs in a third module. Lazy
+imports that close no cycle (the CLI's, to keep `avsim --help` fast) are fine and not flagged.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1] / "avsim"
+
+
+def module_name(path: Path) -> str:
+    """Dotted module name of a source file under the package, e.g. 'avsim.experiments.batch'."""
+    parts = path.relative_to(PACKAGE_DIR.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported_modules(tree: ast.AST, this_module: str, known: set[str]) -> set[str]:
+    """The avsim modules a module's source imports anywhere (top level or inside functions)."""
+    found = set()
+    package = this_module if this_module in known and (PACKAGE_DIR.parent / this_module.replace(".", "/") / "__init__.py").exists() \
+        else this_module.rpartition(".")[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join(anchor + ([base] if base else []))
+            names = [base] + [f"{base}.{alias.name}" for alias in node.names]
+        else:
+            continue
+        for name in names:
+            # `from avsim.x import y` names module avsim.x.y when y is a submodule, else avsim.x.
+            if name in known:
+                found.add(name)
+    found.discard(this_module)
+    return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the avsim modules it imports."""
+    sources = {module_name(p): p for p in PACKAGE_DIR.rglob("*.py")}
+    known = set(sources)
+    return {name: imported_modules(ast.parse(path.read_text()), name, known) for name, path in sources.items()}
+
+
+def strongly_connected(graph: dict[str, set[str]]) -> list[set[str]]:
+    """Tarjan's strongly connected components with more than one module (each is an import cycle)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for succ in graph.get(node, ()):
+            if succ not in index:
+                visit(succ)
+                low[node] = min(low[node], low[succ])
+            elif succ in on_stack:
+                low[node] = min(low[node], index[succ])
+        if low[node] == index[node]:
+            component = set()
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.add(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                components.append(component)
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return components
+
+
+def without_package_inits(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The graph less edges into and out of `__init__` modules that only re-export (importing
+    `avsim.x.y` runs `avsim.x/__init__`, which is not a dependency of avsim.x.y's code)."""
+    inits = {name for name in graph if (PACKAGE_DIR.parent / name.replace(".", "/") / "__init__.py").exists()}
+    return {name: {m for m in deps if m not in inits} for name, deps in graph.items() if name not in inits}
+
+
+def test_the_package_has_no_import_cycles() -> None:
+    cycles = strongly_connected(without_package_inits(import_graph()))
+    assert not cycles, "modules that import each other (move the shared piece into a third module): " + "; ".join(
+        " <-> ".join(sorted(c)) for c in cycles)
