@@ -40,7 +40,7 @@ the strongest attack) run once and count once per defence.
 `avsim.experiments.leaderboard_run.run_leaderboard` runs the unique configs through the sweep
 machinery (`resumable`: a pool or Ray, one fsynced line per run, `--resume`), then writes into its folder:
     leaderboard.toml   the file as it was run
-    results.jsonl      one record per unique config (`avsim.experiments.batch`)
+    results.jsonl      one record per unique config (`avsim.experiments.run_task`)
     manifest.json      command, workers, wall time, runs, failures, versions
     leaderboard.md     the tables (`avsim.experiments.leaderboard_report`)
     leaderboard.png    safety against availability, one point per defence, the Pareto front marked

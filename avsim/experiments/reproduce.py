@@ -3,7 +3,7 @@
     out = reproduce("results", quick=False, workers=2)
 
 writes `results/<timestamp>/`:
-    runs.jsonl            one record per run (see `avsim.experiments.batch`), sorted by
+    runs.jsonl            one record per run (see `avsim.experiments.run_task`), sorted by
                           experiment, cell and seed once the batch is over
     rrd/<experiment>/     one rerun recording per run (`rerun FILE.rrd` opens it)
     experiments/          the experiment files as they were run

@@ -6,7 +6,7 @@ Both batch backends (`avsim.experiments.batch`'s local pool and `avsim.experimen
 run `execute` for each spec; it lives here, apart from both, because each backend needs it and the
 batch needs both backends.
 
-A record (`RunRecord.to_json_dict`, one line of `runs.jsonl`):
+A record (a JSON-ready dict, one line of `runs.jsonl`):
     experiment, cell, seed    where the run comes from
     spec_hash                 sha256 of the run's resolved config and its sign texture's bytes
                               (the same config on the same pixels, the same hash)

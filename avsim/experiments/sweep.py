@@ -25,7 +25,7 @@ Each error is one `ConfigError` line naming the file, the place in it and the ke
 processes or (backend "ray") as Ray tasks on a cluster; the records are the same either way.
 It writes into one folder:
     sweep.toml        the sweep file as it was run
-    results.jsonl     one record per run (`avsim.experiments.batch`), plus `point`: the run's
+    results.jsonl     one record per run (`avsim.experiments.run_task`), plus `point`: the run's
                       grid values, dotted key -> value; in grid order once the sweep is over
     manifest.json     command, backend, workers, wall time, runs, failures, versions
     summary.md        the safety map and every run's outcome (`avsim.experiments.sweep_report`)
