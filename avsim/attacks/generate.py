@@ -270,6 +270,10 @@ def generate(method: str, out_png: str | os.PathLike, *, seed: int = 0, setup: A
         "photometric": asdict(setup.photometric),
         "torch_threads": threads,
         "torch_version": torch.__version__,
+        # The vector kernels torch chose on this CPU: a texture regenerates bit for bit only with the
+        # same ones (and the same threads); with others, float sums round differently and the
+        # optimisation drifts by a few levels (tests/attacks/test_regenerate.py measures it).
+        "torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
         # Compute time: the bank (rendered once per setup) and the optimisation, on this machine;
         # wall clock, and this process's CPU time (the machine is shared: wall time depends on the others).
         "bank_seconds": round(setup.seconds, 1),

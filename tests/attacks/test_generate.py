@@ -63,6 +63,7 @@ def test_a_texture_regenerates_from_its_record_bit_for_bit(tmp_path, clean):
                          progress=False)
     assert record["detector"] == "detector" and "sign_detector.pt" in record["weights_sha256"]
     assert record["view_bank"]["views"] == len(setup.scene.bank) and record["cpu_seconds"] > 0
+    assert record["torch_cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     recipe = read_recipe(first.with_suffix(".json"))
     assert recipe.bank_spec == TINY_BANK and recipe.seed == 5 and recipe.threads == record["torch_threads"]
     second = tmp_path / "second.png"
