@@ -93,11 +93,12 @@ def test_the_attack_experiment_files_load_with_their_seeds():
 
     folder = Path(__file__).resolve().parents[2] / "experiments" / "attacks"
     seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 20, "success_coco_towns.toml": 5,
-             "range_inflation_adjusted.toml": 20, "driveby_detector_town07.toml": 20}
+             "range_inflation_adjusted.toml": 20, "driveby_detector_town07.toml": 20, "sensitivity_coco_town10.toml": 5}
     assert sorted(p.name for p in folder.glob("*.toml")) == sorted(seeds)
     for name, n in seeds.items():
         experiment = load_experiment(folder / name)
-        assert experiment.seeds == n and experiment.report == "attack_success"
+        report = "sensitivity" if name.startswith("sensitivity") else "attack_success"
+        assert experiment.seeds == n and experiment.report == report
         assert any(c.config.scenario.sign == "clean" for c in experiment.cells)  # the pair for the braking delay
     for name in ("success_towns.toml", "success_coco_towns.toml"):
         towns = load_experiment(folder / name)
@@ -135,3 +136,17 @@ def test_a_texture_source_names_its_detector_and_the_purification_it_went_throug
     assert source_of({"detector": "coco"}) == "coco"
     assert source_of({"method": "yang"}) == "detector"  # records from before targets were named
     assert source_of({"detector": "detector", "purify": {"purify": "jpeg", "purify_jpeg_quality": 75}}) == "detector + jpeg"
+
+
+def test_the_coco_sensitivity_file_varies_the_gate_and_the_threshold_one_at_a_time_for_both_signs():
+    from pathlib import Path
+
+    from avsim.experiments.spec import load_experiment
+
+    experiment = load_experiment(Path(__file__).resolve().parents[2] / "experiments" / "attacks" / "sensitivity_coco_town10.toml")
+    for sign in ("clean", "driveby_coco"):
+        cells = [c.config for c in experiment.cells if c.config.scenario.sign == sign]
+        assert {(c.policy.trigger_dist_m, c.policy.conf_threshold) for c in cells} == {
+            (30.0, 0.5), (40.0, 0.5), (60.0, 0.5), (None, 0.5), (40.0, 0.3), (40.0, 0.7)}
+        assert {(c.perception.kind, c.policy.name, c.scenario.town, c.scenario.placement) for c in cells} == {
+            ("coco", "baseline", "town10", "near")}
