@@ -2,13 +2,19 @@
 distance, first confident detection and its delay, closed-loop success with its Wilson interval,
 and the report section that shows them."""
 
+from pathlib import Path
+
 import pytest
 
 from avsim.attacks.disappearance import DriveBys, Frame
 from avsim.attacks.drive_by_report import delay_m, disappearance_section, mean_first_m, transfer_section
 from avsim.attacks.evaluate import sign_detection
 from avsim.attacks.success import success, success_row
+from avsim.experiments.spec import load_experiment
 from avsim.perception.base import Detection
+
+ROOT = Path(__file__).resolve().parents[2]
+ATTACK_EXPERIMENTS = ROOT / "experiments" / "attacks"
 
 
 def test_a_confident_box_elsewhere_never_stands_for_the_sign():
@@ -68,7 +74,6 @@ def test_success_rate_overrun_and_braking_delay():
 def test_the_attack_success_report_pairs_each_cell_with_its_clean_cell(tmp_path):
     from avsim.experiments.report_cells import Cells
     from avsim.experiments.report_sections import attack_success_section
-    from avsim.experiments.spec import load_experiment
 
     path = tmp_path / "success.toml"
     path.write_text('title = "t"\nseeds = 2\nreport = "attack_success"\n[defaults]\npolicy = { name = "baseline" }\n'
@@ -87,38 +92,31 @@ def test_the_attack_success_report_pairs_each_cell_with_its_clean_cell(tmp_path)
 
 
 def test_the_attack_experiment_files_load_with_their_seeds():
-    from pathlib import Path
-
-    from avsim.experiments.spec import load_experiment
-
-    folder = Path(__file__).resolve().parents[2] / "experiments" / "attacks"
-    seeds = {"success_town07.toml": 20, "success_towns.toml": 5, "success_coco.toml": 20, "success_coco_towns.toml": 5,
-             "range_inflation_adjusted.toml": 20, "driveby_detector_town07.toml": 20, "sensitivity_coco_town10.toml": 5}
-    assert sorted(p.name for p in folder.glob("*.toml")) == sorted(seeds)
-    for name, n in seeds.items():
-        experiment = load_experiment(folder / name)
-        report = "sensitivity" if name.startswith("sensitivity") else "attack_success"
-        assert experiment.seeds == n and experiment.report == report
+    # file name -> (seeds, the report kind it declares)
+    expected = {"success_town07.toml": (20, "attack_success"), "success_towns.toml": (5, "attack_success"),
+                "success_coco.toml": (20, "attack_success"), "success_coco_towns.toml": (5, "attack_success"),
+                "range_inflation_adjusted.toml": (20, "attack_success"),
+                "driveby_detector_town07.toml": (20, "attack_success"),
+                "sensitivity_coco_town10.toml": (5, "sensitivity")}
+    assert sorted(p.name for p in ATTACK_EXPERIMENTS.glob("*.toml")) == sorted(expected)
+    for name, (seeds, report) in expected.items():
+        experiment = load_experiment(ATTACK_EXPERIMENTS / name)
+        assert experiment.seeds == seeds and experiment.report == report
         assert any(c.config.scenario.sign == "clean" for c in experiment.cells)  # the pair for the braking delay
     for name in ("success_towns.toml", "success_coco_towns.toml"):
-        towns = load_experiment(folder / name)
+        towns = load_experiment(ATTACK_EXPERIMENTS / name)
         cells = {(c.config.scenario.town, c.config.scenario.placement) for c in towns.cells}
         assert len(cells) == 8 and ("town07", "standard") not in cells
 
 
 def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_under_both_detectors():
     """Issue 14: closed-loop success per texture and detector, in Town07 standard and the other 8 cells."""
-    from pathlib import Path
-
-    from avsim.experiments.spec import load_experiment
-
-    root = Path(__file__).resolve().parents[2]
     budget_points = {"yang_eps0.09", "yang_eps0.18"}  # yang at smaller budgets: the safety map's axis, not attacks
-    shipped = {"clean"} | {p.stem for p in (root / "textures").glob("*.json")} - budget_points
+    shipped = {"clean"} | {p.stem for p in (ROOT / "textures").glob("*.json")} - budget_points
     assert len(shipped) == 15
     for name, kind, places in (("success_town07.toml", "detector", 1), ("success_towns.toml", "detector", 8),
                                ("success_coco.toml", "coco", 1), ("success_coco_towns.toml", "coco", 8)):
-        experiment = load_experiment(root / "experiments" / "attacks" / name)
+        experiment = load_experiment(ATTACK_EXPERIMENTS / name)
         assert {c.config.perception.kind for c in experiment.cells} == {kind}
         assert {c.config.policy.name for c in experiment.cells} == {"baseline"}
         signs_by_place: dict = {}
@@ -139,11 +137,7 @@ def test_a_texture_source_names_its_detector_and_the_purification_it_went_throug
 
 
 def test_the_coco_sensitivity_file_varies_the_gate_and_the_threshold_one_at_a_time_for_both_signs():
-    from pathlib import Path
-
-    from avsim.experiments.spec import load_experiment
-
-    experiment = load_experiment(Path(__file__).resolve().parents[2] / "experiments" / "attacks" / "sensitivity_coco_town10.toml")
+    experiment = load_experiment(ATTACK_EXPERIMENTS / "sensitivity_coco_town10.toml")
     for sign in ("clean", "driveby_coco"):
         cells = [c.config for c in experiment.cells if c.config.scenario.sign == sign]
         assert {(c.policy.trigger_dist_m, c.policy.conf_threshold) for c in cells} == {
