@@ -24,6 +24,8 @@ C = TypeVar("C")
 COCO_INPUTS = ("resize", "crop", "upscale")
 # Values of PerceptionConfig.coco_precision: the float32 port, or its bfloat16 copy (perception/coco/bf16.py).
 COCO_PRECISIONS = ("fp32", "bf16")
+# Values of PerceptionConfig.detector_precision: the own detector in float32, or under bfloat16 autocast.
+DETECTOR_PRECISIONS = ("fp32", "bf16")
 # Values of PerceptionConfig.purify (perception/purify.py) and .ensemble_fusion (perception/ensemble.py).
 PURIFIERS = ("none", "jpeg", "median")
 ENSEMBLE_FUSIONS = ("or", "and")
@@ -281,6 +283,12 @@ class PerceptionConfig:
     # a run is bit-identical only at the same count. One thread also lets a pool of
     # worker processes use every core without oversubscribing them.
     threads: int = 1
+    # `detector`: the arithmetic of the own network. "fp32" is what every table in the docs was
+    # measured with; "bf16" runs its convolutions under bfloat16 autocast, about 1.5x faster here,
+    # and lets the lock-step batch share one network call among cars (perception/detector/infer.py).
+    # Its scores differ from fp32's by bf16 rounding: `python -m avsim.perception.detector.precision_agreement`
+    # measures recall per 5-m bin under both. It needs a CPU on which oneDNN runs bf16 (AVX-512).
+    detector_precision: str = "fp32"
     # Gaussian read noise added to every frame the detector sees [8-bit levels, 1 sigma]; the
     # pattern is drawn from scenario.seed, so seeds differ in their noise. The oracle reads
     # segmentation and has none.
@@ -340,6 +348,8 @@ class PerceptionConfig:
         _require(self.oracle_min_box_height_px >= 1,
                  f"perception.oracle_min_box_height_px must be >= 1, got {self.oracle_min_box_height_px}")
         _require(0 < self.min_confidence < 1, f"perception.min_confidence must be in (0, 1), got {self.min_confidence}")
+        _require(self.detector_precision in DETECTOR_PRECISIONS,
+                 f"perception.detector_precision must be one of {', '.join(DETECTOR_PRECISIONS)}, got {self.detector_precision!r}")
         _require(self.coco_input in COCO_INPUTS,
                  f"perception.coco_input must be one of {', '.join(COCO_INPUTS)}, got {self.coco_input!r}")
         _require(1 <= self.coco_upscale <= 4, f"perception.coco_upscale must be in [1, 4], got {self.coco_upscale}")

@@ -29,7 +29,7 @@ from avsim.control.policies import POLICIES, STOP_CLASS, BrakeDecision, CameraMo
 from avsim.errors import PhysicsError
 from avsim.metrics import STOPPED_SPEED_MPS, RunResult, StepRecord, summarise
 from avsim.perception.base import Detection
-from avsim.perception.factory import build_perception
+from avsim.perception.factory import FrameDetectorCache, build_perception
 from avsim.sensors.camera import CAMERA_NAMES, CameraRig
 from avsim.vehicle.brake_test import full_brake_decel_mps2
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls, Vehicle
@@ -46,14 +46,16 @@ _INSTABILITY_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjW
 class ClosedLoop:
     """A single run of one `SimConfig`. Build, then `run()` (or `step()` repeatedly)."""
 
-    def __init__(self, config: SimConfig) -> None:
+    def __init__(self, config: SimConfig, detectors: FrameDetectorCache | None = None) -> None:
+        """detectors: where a pixel perception takes its network from, shared with other runs (the
+        lock-step batch); None builds this run's own."""
         self.config = config
         policy_factory = POLICIES.get(config.policy.name)  # fail on a bad name before building anything
         self.model, self.scene = build_scene(config)
         self.data = mujoco.MjData(self.model)
         self.vehicle = Vehicle(self.model, self.data, config.vehicle)
         self.rig = CameraRig(self.model, config.camera, fog=config.scenario.fog_end_m > 0)
-        self.perception = build_perception(config.perception, self.model, self.scene, config.scenario.seed)
+        self.perception = build_perception(config.perception, self.model, self.scene, config.scenario.seed, detectors)
         context = PolicyContext(
             cameras={name: self._camera_model(name) for name in CAMERA_NAMES},
             control_dt_s=config.loop.control_dt_s,
@@ -94,10 +96,14 @@ class ClosedLoop:
         The record holds the state at sensing time (the start of the step) with the
         detections and commands that state produced.
         """
+        # render -> perceive, then the rest
+        return self.step_with(self.perceive(self.policy.cameras))
+
+    def step_with(self, detections: dict[str, list[Detection]]) -> StepRecord:
+        """The rest of a control step once the policy's cameras have been perceived at the current
+        state: decide -> actuate -> N physics steps -> record. `step` calls it with `perceive`'s
+        detections; the lock-step batch with the detections of its shared network call."""
         speed = self.vehicle.speed_mps()
-        # render -> perceive
-        detections = self.perceive(self.policy.cameras)
-        # decide
         obs = Observation(self.time_s, speed, detections)
         decision = self.policy.decide(obs)
         return self.actuate(self._controls(decision, speed), decision, detections)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from avsim.config import SimConfig
@@ -38,24 +39,33 @@ def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None
     loop = ClosedLoop(config)
     try:
         with contextlib.ExitStack() as recorders:
-            hooks = []
-            if rrd_path:
-                from avsim.recording.rerun_log import RunRecorder
-
-                hooks.append(recorders.enter_context(RunRecorder(loop, rrd_path)).on_step)
-            if mp4_path:
-                from avsim.recording.video import VideoRecorder
-
-                hooks.append(recorders.enter_context(VideoRecorder(loop, mp4_path)).on_step)
-
-            def on_step(loop_: ClosedLoop, record: StepRecord) -> None:
-                for hook in hooks:
-                    hook(loop_, record)
-
-            result = loop.run(on_step=on_step if hooks else None)
+            result = loop.run(on_step=attach_recorders(loop, recorders, rrd_path=rrd_path, mp4_path=mp4_path))
     finally:
         loop.close()
     return RunOutput(result, tuple(loop.records), time.perf_counter() - start)
+
+
+def attach_recorders(loop: ClosedLoop, stack: contextlib.ExitStack, *, rrd_path: str | os.PathLike | None = None,
+                     mp4_path: str | os.PathLike | None = None) -> Callable[[ClosedLoop, StepRecord], None] | None:
+    """Open the asked-for recorders of `loop` on `stack` (each writes its file when the stack closes
+    without an error); returns the per-step hook that feeds them, or None when none is asked for."""
+    hooks = []
+    if rrd_path:
+        from avsim.recording.rerun_log import RunRecorder
+
+        hooks.append(stack.enter_context(RunRecorder(loop, rrd_path)).on_step)
+    if mp4_path:
+        from avsim.recording.video import VideoRecorder
+
+        hooks.append(stack.enter_context(VideoRecorder(loop, mp4_path)).on_step)
+    if not hooks:
+        return None
+
+    def on_step(loop_: ClosedLoop, record: StepRecord) -> None:
+        for hook in hooks:
+            hook(loop_, record)
+
+    return on_step
 
 
 def run_config(config: SimConfig) -> tuple[RunResult, float]:

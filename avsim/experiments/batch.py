@@ -18,6 +18,11 @@ Backends (`BACKENDS`); both run `run_task.execute(spec, root)` for each spec:
             (`avsim.experiments.ray_backend`, an optional extra: pip install 'avsim[ray]').
 Records, `on_record` and the progress bar are one code path for both.
 
+Many cars per process (`batch`, local backend): each worker steps up to `batch` runs in
+lock-step (`avsim.lockstep`), one network call per control tick over all their cars' frames.
+A run's record is the same, bit for bit, alone or in a batch of any size (`wall_s` aside: in a
+batch it is the run's share of the batch's time).
+
 A record is one line of `runs.jsonl`; its fields are `avsim.experiments.run_task`'s.
 """
 
@@ -36,7 +41,7 @@ import torch
 
 from avsim.errors import ConfigError
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
-from avsim.experiments.run_task import RunSpec, execute, worker_env
+from avsim.experiments.run_task import RunSpec, execute, execute_many, worker_env
 from avsim.workers import init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
@@ -78,19 +83,24 @@ def check_backend(backend: str, address: str | None = None) -> None:
 
 def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,
               on_record: Callable[[dict[str, Any]], None] | None = None, progress: bool = True,
-              description: str = "runs", backend: str = "local", address: str | None = None) -> list[dict[str, Any]]:
+              description: str = "runs", backend: str = "local", address: str | None = None,
+              batch: int = 1) -> list[dict[str, Any]]:
     """Run every spec; returns their records in the order of `specs`.
 
     workers: runs at once. local: processes (1 runs in this process); ray: the local cluster's
     CPUs, or with `address` at most that many runs in flight (None: as many as the cluster
     takes). on_record is called in this process as each run finishes (in finishing order),
     e.g. to append it to a results file. backend, address: see the module docstring.
+    batch: runs each local worker steps in lock-step (1: one at a time); the ray backend runs one
+    run a task.
     """
     from tqdm import tqdm
 
     check_backend(backend, address)
     if backend == "local" and (workers is None or workers < 1):
         raise ConfigError(f"the local backend needs workers >= 1, got {workers}")
+    if batch < 1:
+        raise ConfigError(f"--batch must be >= 1, got {batch}")
     if not specs:
         return []  # nothing to run: no pool, no cluster
     root_str = str(root) if root is not None else None
@@ -98,7 +108,7 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
     if backend == "ray":
         results = ray_results(specs, root_str, workers=workers, address=address)
     else:
-        results = _local_results(specs, workers, root_str)
+        results = _local_results(specs, workers, root_str, batch)
     bar = tqdm(total=len(specs), desc=description, unit="run", disable=not progress, dynamic_ncols=True)
     failures = 0
     try:
@@ -115,11 +125,14 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
     return [r for r in records if r is not None]
 
 
-def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
-    """(index into specs, record) as each run finishes: in this process, or in a pool of spawned processes."""
+def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None, batch: int = 1
+                   ) -> Iterator[tuple[int, dict[str, Any]]]:
+    """(index into specs, record) as each run (or lock-step group of runs) finishes: in this
+    process, or in a pool of spawned processes."""
+    groups = lockstep_groups(len(specs), workers, batch)
     if workers <= 1:
-        for index, spec in enumerate(specs):
-            yield index, execute(spec, root)
+        for group in groups:
+            yield from _group_records(group, _run_group([specs[i] for i in group], root))
         return
     context = multiprocessing.get_context("spawn")
     # The workers die with this process (a SIGKILL leaves no orphans) and ignore Ctrl-C, which
@@ -128,12 +141,28 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None) -> 
                                initargs=(worker_env(workers), os.getpid()))
     finished = False
     try:
-        futures = {pool.submit(execute, spec, root): index for index, spec in enumerate(specs)}
+        futures = {pool.submit(_run_group, [specs[i] for i in group], root): group for group in groups}
         for future in as_completed(futures):
-            yield futures[future], future.result()
+            yield from _group_records(futures[future], future.result())
         finished = True
     finally:
         if finished:
             pool.shutdown()
         else:  # stopped early (Ctrl-C, an error, the caller closed us): the runs in flight are not awaited
             terminate_workers(pool)
+
+
+def lockstep_groups(count: int, workers: int, batch: int) -> list[list[int]]:
+    """Spec indices cut into consecutive lock-step groups of at most `batch`, and small enough
+    that every worker gets a group (a 10-run batch of 8 on 2 workers is two groups of 5)."""
+    size = max(1, min(batch, -(-count // max(1, workers))))
+    return [list(range(start, min(start + size, count))) for start in range(0, count, size)]
+
+
+def _run_group(specs: list[RunSpec], root: str | None) -> list[dict[str, Any]]:
+    """The records of one group: a lone run as `execute` runs it, more in lock-step."""
+    return [execute(specs[0], root)] if len(specs) == 1 else execute_many(specs, root)
+
+
+def _group_records(group: list[int], records: list[dict[str, Any]]) -> Iterator[tuple[int, dict[str, Any]]]:
+    yield from zip(group, records)

@@ -34,7 +34,8 @@ from avsim.config import NO_SIGN, SimConfig
 from avsim.control.policies import POLICIES, STOP_CLASS
 from avsim.errors import ConfigError
 from avsim.metrics import StepRecord
-from avsim.runner import run_recorded
+from avsim.lockstep import run_lockstep
+from avsim.runner import RunOutput, run_recorded
 from avsim.world.scene import resolve_sign_texture
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
@@ -103,13 +104,28 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
 
     root: the batch folder; the record's `rrd` path is written relative to it.
     """
-    record = _blank_record(spec)
     try:
-        output = run_recorded(spec.config, rrd_path=spec.rrd_path)
+        output: RunOutput | Exception = run_recorded(spec.config, rrd_path=spec.rrd_path)
     except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
-        last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+        output = exc
+    return record_of(spec, output, root)
+
+
+def execute_many(specs: Sequence[RunSpec], root: str | None = None) -> list[dict[str, Any]]:
+    """Run the specs in lock-step in this process (`avsim.lockstep`: one network call per control
+    tick over all their cars) and return their records, in order: each the record `execute` gives
+    that spec alone, `wall_s` aside (a run's share of the batch's time)."""
+    outputs = run_lockstep([spec.config for spec in specs], rrd_paths=[spec.rrd_path for spec in specs])
+    return [record_of(spec, output, root) for spec, output in zip(specs, outputs)]
+
+
+def record_of(spec: RunSpec, output: RunOutput | Exception, root: str | None = None) -> dict[str, Any]:
+    """The record of a spec's finished run, or of the exception that ended it (a failed record)."""
+    if isinstance(output, Exception):
+        last = traceback.extract_tb(output.__traceback__)[-1] if output.__traceback__ else None
         where = f" (at {Path(last.filename).name}:{last.lineno})" if last else ""
-        return failed_record(spec, f"{type(exc).__name__}: {exc}{where}")
+        return failed_record(spec, f"{type(output).__name__}: {output}{where}")
+    record = _blank_record(spec)
     # The policy classes declare the cameras they render; the trace has a series for each.
     cameras = POLICIES.get(spec.config.policy.name).cameras
     record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),

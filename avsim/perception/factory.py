@@ -17,11 +17,12 @@ from avsim.world.scene import SceneInfo
 if TYPE_CHECKING:
     from avsim.perception.frame import FrameDetector
 
-# (config, model, scene, seed) -> Perception; the seed is the run's scenario.seed (sensor noise).
-PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int], Perception]
+# (config, model, scene, seed, detectors) -> Perception; the seed is the run's scenario.seed (sensor
+# noise); detectors: where a pixel perception takes its network from (None: build its own).
+PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int, "FrameDetectorCache | None"], Perception]
 PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
-PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
-PERCEPTIONS.add("none", lambda cfg, model, scene, seed: NoPerception())
+PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed, detectors: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
+PERCEPTIONS.add("none", lambda cfg, model, scene, seed, detectors: NoPerception())
 
 
 # Perceptions that run on pixels alone, as frame detectors: config -> an object with
@@ -37,7 +38,7 @@ def _detector_frames(config: PerceptionConfig) -> "FrameDetector":
     from avsim.perception.detector.weights import resolve_weights_path
 
     return SignDetectorRunner(resolve_weights_path(config.weights_path), conf_threshold=config.min_confidence,
-                              num_threads=config.threads)
+                              num_threads=config.threads, precision=config.detector_precision)
 
 
 def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
@@ -86,6 +87,25 @@ def build_frame_detector(config: PerceptionConfig) -> "FrameDetector":
     return detector if purifier is None else PurifiedDetector(detector, purifier)
 
 
+class FrameDetectorCache:
+    """One frame detector per distinct perception config, shared by the runs that use it.
+
+    The lock-step batch (`avsim.experiments.lockstep`) builds its runs' perceptions from one cache,
+    so that cars with the same perception share one network and its calls. A detector holds no
+    per-run state (the per-run sensor noise lives in the perception around it), so sharing it
+    changes no result.
+    """
+
+    def __init__(self) -> None:
+        self._detectors: dict[PerceptionConfig, FrameDetector] = {}
+
+    def get(self, config: PerceptionConfig) -> "FrameDetector":
+        """The frame detector of `config`, built on first use."""
+        if config not in self._detectors:
+            self._detectors[config] = build_frame_detector(config)
+        return self._detectors[config]
+
+
 def networks_per_frame(config: PerceptionConfig) -> int:
     """How many networks the perception runs on each camera frame: 0 for the oracle (it renders
     segmentation instead), the members of an ensemble, else 1."""
@@ -94,11 +114,13 @@ def networks_per_frame(config: PerceptionConfig) -> int:
     return {"oracle": 0, "ensemble": len(ENSEMBLE_MEMBERS)}.get(config.kind, 1)
 
 
-def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:
+def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int,
+                      detectors: FrameDetectorCache | None) -> Perception:
     from avsim.perception.frame import FramePerception
     from avsim.sensors.noise import SensorNoise
 
-    return FramePerception(config.kind, build_frame_detector(config), config.min_box_height_px, config.threads,
+    detector = build_frame_detector(config) if detectors is None else detectors.get(config)
+    return FramePerception(config.kind, detector, config.min_box_height_px, config.threads,
                            SensorNoise(config.sensor_noise_std, seed),
                            {"front": config.front_roi_px, "side": config.side_roi_px})
 
@@ -109,6 +131,8 @@ PERCEPTIONS.add("onnx", _frame_perception)
 PERCEPTIONS.add("ensemble", _frame_perception)
 
 
-def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0) -> Perception:
-    """The configured perception; `seed` (the run's scenario.seed) seeds its sensor noise."""
-    return PERCEPTIONS.get(config.kind)(config, model, scene, seed)
+def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0,
+                     detectors: FrameDetectorCache | None = None) -> Perception:
+    """The configured perception; `seed` (the run's scenario.seed) seeds its sensor noise; a pixel
+    perception takes its network from `detectors` when given (shared), else builds its own."""
+    return PERCEPTIONS.get(config.kind)(config, model, scene, seed, detectors)

@@ -7,6 +7,12 @@ interest, drop boxes shorter than the range limit. The detector is anything with
 CenterNet, an ONNX model). With one torch thread and two cameras, the cameras' networks run at once on two
 threads (each still single-threaded, so the result is the same, bit for bit, as one camera
 after the other); the frames render, and draw their noise, in camera order first.
+
+A detector that reads only part of a frame says which (`pixels_needed`, e.g. the own detector's
+crop around the region of interest): then only that part is read back from the renderer and
+noised, with the same pixel values as in a whole frame. The lock-step batch
+(`avsim.experiments.lockstep`) calls the two halves of `detect_cameras` itself, `frame_requests`
+then `keep`, to run many cars' frames through one network call (`detect_many`).
 """
 
 from __future__ import annotations
@@ -26,7 +32,23 @@ Region = tuple[int, int, int, int]
 
 
 class FrameDetector(Protocol):
+    """What a pixel perception's network offers. Optional, where the detector can do better than the
+    defaults: `pixels_needed(region_px, width_px, height_px) -> Region | None` (the part of a frame it
+    reads; None: all of it) and `detect_many([(image_rgb, camera, region_px), ...]) -> [detections, ...]`
+    (each frame's detections exactly as `detect` gives them alone)."""
+
     def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]: ...
+
+
+# (frame (H, W, 3) uint8, camera name, region of interest or None): one frame for a detector.
+FrameRequest = tuple[np.ndarray, str, Region | None]
+
+
+def detect_many(detector: FrameDetector, requests: list[FrameRequest]) -> list[list[Detection]]:
+    """The detector's detections of each requested frame: its own `detect_many` where it has one."""
+    if hasattr(detector, "detect_many"):
+        return detector.detect_many(requests)
+    return [detector.detect(frame, camera, region_px=region) for frame, camera, region in requests]
 
 
 class FramePerception(Perception):
@@ -51,6 +73,14 @@ class FramePerception(Perception):
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
         return self._network(self._frame(rig, data, camera), camera)
 
+    def frame_requests(self, rig: CameraRig, data: mujoco.MjData, cameras: tuple[str, ...]) -> list[FrameRequest]:
+        """Render (and noise) each camera's frame, in camera order: what the detector is to look at."""
+        return [(self._frame(rig, data, camera), camera, self.regions_px.get(camera)) for camera in cameras]
+
+    def keep(self, detections: list[Detection]) -> list[Detection]:
+        """The detections this perception reports of those its detector found in a frame (the range limit)."""
+        return [d for d in detections if d.height_px >= self.min_box_height_px]
+
     def detect_cameras(self, rig: CameraRig, data: mujoco.MjData, cameras: tuple[str, ...]) -> dict[str, list[Detection]]:
         if self.threads != 1 or len(cameras) < 2:
             return super().detect_cameras(rig, data, cameras)
@@ -65,12 +95,18 @@ class FramePerception(Perception):
         return {camera: (last_detections if camera == last else pending[camera].result()) for camera in cameras}
 
     def _frame(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> np.ndarray:
-        frame = rig.render_rgb(data, camera)
-        return frame if self.noise is None else self.noise.apply(frame)
+        needed = self._pixels_needed(rig, camera)
+        frame = rig.render_rgb(data, camera, needed)
+        return frame if self.noise is None else self.noise.apply(frame, needed)
+
+    def _pixels_needed(self, rig: CameraRig, camera: str) -> Region | None:
+        if not hasattr(self.detector, "pixels_needed"):
+            return None
+        intrinsics = rig.intrinsics(camera)
+        return self.detector.pixels_needed(self.regions_px.get(camera), intrinsics.width_px, intrinsics.height_px)
 
     def _network(self, frame: np.ndarray, camera: str) -> list[Detection]:
-        detections = self.detector.detect(frame, camera, region_px=self.regions_px.get(camera))
-        return [d for d in detections if d.height_px >= self.min_box_height_px]
+        return self.keep(self.detector.detect(frame, camera, region_px=self.regions_px.get(camera)))
 
     def close(self) -> None:
         if self._worker is not None:

@@ -101,11 +101,21 @@ class CameraRig:
         cid = self._ids[camera]
         return CameraPose(data.cam_xpos[cid].copy(), data.cam_xmat[cid].reshape(3, 3).copy())
 
-    def render_rgb(self, data: mujoco.MjData, camera: str) -> np.ndarray:
-        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array)."""
+    def render_rgb(self, data: mujoco.MjData, camera: str, region_px: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array).
+
+        region_px: (x0, y0, x1, y1) [px], end-exclusive: read back only that part (the same pixels
+        as in the whole image; reading back is where a software rasteriser spends its time) and
+        leave the rest zero. For a perception that looks at a region of interest only.
+        """
         if self._rgb is None:
             self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False, fog=self._fog)
-        return self._rgb.render(data, self._ids[camera], self._option).copy()
+        if region_px is None:
+            return self._rgb.render(data, self._ids[camera], self._option).copy()
+        x0, y0, x1, y1 = region_px
+        frame = np.zeros((self._config.height_px, self._config.width_px, 3), np.uint8)
+        frame[y0:y1, x0:x1] = self._rgb.render(data, self._ids[camera], self._option, region_px)
+        return frame
 
     def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
         """Model geom id per pixel, (H * s, W * s) int32 with s = seg_supersample; -1 for background."""

@@ -31,13 +31,25 @@ class SensorNoise:
         self.rng = np.random.default_rng((seed, SENSOR_NOISE_STREAM))
         self._bank = np.empty(0, np.int16)
 
-    def apply(self, rgb: np.ndarray) -> np.ndarray:
-        """A noisy copy of `rgb` (the input itself when the std is 0), clipped to [0, 255]."""
+    def apply(self, rgb: np.ndarray, region_px: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """A noisy copy of `rgb` (the input itself when the std is 0), clipped to [0, 255].
+
+        region_px: (x0, y0, x1, y1) [px], end-exclusive: add noise there only, and leave the rest of
+        the copy zero (a frame of which only that part was rendered, `CameraRig.render_rgb`). The
+        region gets the very values it gets when the whole frame is noised: the draws are the same.
+        """
         if self.std_levels == 0:
             return rgb
         size = rgb.size
         if self._bank.size < 2 * size:
             self._bank = np.rint(self.rng.standard_normal(2 * size) * self.std_levels).astype(np.int16)
         offset = int(self.rng.integers(0, self._bank.size - size + 1))
-        noisy = rgb.astype(np.int16) + self._bank[offset:offset + size].reshape(rgb.shape)
-        return np.clip(noisy, 0, 255, out=noisy).astype(np.uint8)
+        window = self._bank[offset:offset + size].reshape(rgb.shape)
+        if region_px is None:
+            noisy = rgb.astype(np.int16) + window
+            return np.clip(noisy, 0, 255, out=noisy).astype(np.uint8)
+        x0, y0, x1, y1 = region_px
+        noisy = rgb[y0:y1, x0:x1].astype(np.int16) + window[y0:y1, x0:x1]
+        out = np.zeros_like(rgb)
+        out[y0:y1, x0:x1] = np.clip(noisy, 0, 255, out=noisy)
+        return out

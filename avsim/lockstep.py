@@ -1,0 +1,158 @@
+"""Many closed-loop runs in one process, stepped in lock-step: one network call per control tick
+over every car's camera frames.
+
+    outputs = run_lockstep([config_a, config_b, ...], rrd_paths=[None, "b.rrd", ...])
+    outputs[i]    # RunOutput of configs[i], or the exception that ended it
+
+Each tick, every car that is still running renders its cameras (`FramePerception.frame_requests`);
+the frames of all cars that share a perception config go through their shared detector at once
+(`detect_many`); then each car decides, actuates and steps its physics (`ClosedLoop.step_with`).
+A car whose run ends drops out; the others go on. Perceptions that do not run a network on
+pixels (the oracle, none) perceive car by car, as in a lone run.
+
+A run's result does not depend on its batch: the detectors' `detect_many` gives each frame what
+a lone `detect` gives it, bit for bit (see `avsim.perception.detector.infer` for why under bf16
+frames can share a call and under fp32 they cannot), every car keeps its own MuJoCo model,
+data, renderer and seeded sensor noise, and the cars are stepped in a fixed order.
+`tests/test_lockstep.py` checks a mixed batch against the same runs alone.
+
+The wall-clock time of a run in a batch is its share of the batch's: each tick's time divided
+evenly among the cars that took part in it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections.abc import Sequence
+
+from avsim.config import SimConfig
+from avsim.loop import ClosedLoop
+from avsim.perception.base import Detection
+from avsim.perception.factory import FrameDetectorCache
+from avsim.perception.frame import FramePerception, FrameRequest, detect_many
+from avsim.runner import RunOutput, attach_recorders
+
+
+class _Car:
+    """One run of the batch: its loop, its recorders' hook and the wall time charged to it [s]."""
+
+    def __init__(self, loop: ClosedLoop, stack: contextlib.ExitStack, rrd_path: str | os.PathLike | None) -> None:
+        self.loop = loop
+        self.stack = stack
+        self.on_step = attach_recorders(loop, stack, rrd_path=rrd_path)
+        self.wall_s = 0.0
+
+
+def run_lockstep(configs: Sequence[SimConfig], *, rrd_paths: Sequence[str | os.PathLike | None] | None = None
+                 ) -> list[RunOutput | Exception]:
+    """Run every config to the end in lock-step; returns, per config, its `RunOutput` or the
+    exception that ended it (a run that fails does not stop the others).
+
+    rrd_paths: per config, a rerun recording to write, or None.
+    """
+    rrd_paths = list(rrd_paths) if rrd_paths is not None else [None] * len(configs)
+    if len(rrd_paths) != len(configs):
+        raise ValueError(f"need one rrd path (or None) per config: {len(rrd_paths)} for {len(configs)} configs")
+    detectors = FrameDetectorCache()
+    outputs: list[RunOutput | Exception | None] = [None] * len(configs)
+    cars: dict[int, _Car] = {}
+    try:
+        for index, config in enumerate(configs):
+            started = time.perf_counter()
+            try:
+                car = _start(config, detectors, rrd_paths[index])
+            except Exception as exc:  # noqa: BLE001 - this run failed; the batch goes on
+                outputs[index] = exc
+                continue
+            car.wall_s = time.perf_counter() - started
+            cars[index] = car
+        while cars:
+            started = time.perf_counter()
+            running = {index: car for index, car in cars.items() if not car.loop.done()}
+            for index in [i for i in cars if i not in running]:
+                outputs[index] = _finish(cars.pop(index))
+            failed = _tick(running)
+            share_s = (time.perf_counter() - started) / max(1, len(running))
+            for index, car in running.items():
+                car.wall_s += share_s
+            for index, exc in failed.items():
+                _abandon(cars.pop(index))
+                outputs[index] = exc
+    finally:
+        for car in cars.values():  # only left here when something outside a run went wrong
+            _abandon(car)
+    return [output for output in outputs if output is not None]
+
+
+def _start(config: SimConfig, detectors: FrameDetectorCache, rrd_path: str | os.PathLike | None) -> _Car:
+    loop = ClosedLoop(config, detectors)
+    stack = contextlib.ExitStack()
+    try:
+        return _Car(loop, stack, rrd_path)
+    except BaseException:
+        stack.close()
+        loop.close()
+        raise
+
+
+def _tick(cars: dict[int, _Car]) -> dict[int, Exception]:
+    """One control step of every car: render all, one network call per shared detector, then each
+    car's decision, actuation and physics. Returns the cars whose run raised, with the exception."""
+    failed: dict[int, Exception] = {}
+    detections: dict[int, dict[str, list[Detection]]] = {}
+    # render: each frame perception's requests, grouped by the detector that serves them
+    groups: dict[int, list[tuple[int, FrameRequest]]] = {}
+    for index, car in cars.items():
+        loop = car.loop
+        try:
+            if isinstance(loop.perception, FramePerception):
+                for request in loop.perception.frame_requests(loop.rig, loop.data, loop.policy.cameras):
+                    groups.setdefault(id(loop.perception.detector), []).append((index, request))
+                detections[index] = {camera: [] for camera in loop.policy.cameras}
+            else:
+                detections[index] = loop.perceive(loop.policy.cameras)
+        except Exception as exc:  # noqa: BLE001
+            failed[index] = exc
+    # perceive: one call per detector over every car's frames
+    for group in groups.values():
+        group = [(index, request) for index, request in group if index not in failed]
+        if not group:
+            continue
+        perception = cars[group[0][0]].loop.perception
+        found = detect_many(perception.detector, [request for _, request in group])
+        for (index, (_, camera, _)), frame_detections in zip(group, found):
+            detections[index][camera] = cars[index].loop.perception.keep(frame_detections)
+    # decide -> actuate -> physics -> record, car by car
+    for index, car in cars.items():
+        if index in failed:
+            continue
+        try:
+            record = car.loop.step_with(detections[index])
+            if car.on_step is not None:
+                car.on_step(car.loop, record)
+        except Exception as exc:  # noqa: BLE001
+            failed[index] = exc
+    return failed
+
+
+def _finish(car: _Car) -> RunOutput | Exception:
+    """The finished run's output, its recordings written; or the exception that writing raised."""
+    loop = car.loop
+    try:
+        result = loop.result(loop.stopped)
+        car.stack.close()
+    except Exception as exc:  # noqa: BLE001
+        _abandon(car)
+        return exc
+    loop.close()
+    return RunOutput(result, tuple(loop.records), car.wall_s)
+
+
+def _abandon(car: _Car) -> None:
+    """Close a run that will not finish: its recorders leave no file (they see the exception)."""
+    try:
+        car.stack.__exit__(RuntimeError, RuntimeError("run abandoned"), None)
+    finally:
+        car.loop.close()
