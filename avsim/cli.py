@@ -33,6 +33,7 @@ from avsim.config import check_seed
 from avsim.errors import AvsimError, ConfigError, Interrupted
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
+from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 
 def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
@@ -101,7 +102,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address)
+                    backend=args.backend, address=args.address, batch=args.batch)
     print((out / "report.md").read_text())
     print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
     return 0
@@ -112,7 +113,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
-                    backend=args.backend, address=args.address)
+                    backend=args.backend, address=args.address, batch=args.batch)
     print((out / "summary.md").read_text())
     print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
     return 0
@@ -124,7 +125,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
 
     board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
-                          progress=not args.no_progress, backend=args.backend, address=args.address)
+                          progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch)
     print((out / "leaderboard.md").read_text())
     print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
     return 0
@@ -154,6 +155,11 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    if args.profile:
+        from avsim.bench_profile import run_profile
+
+        run_profile(quick=args.quick)
+        return 0
     from avsim.bench import run_benchmarks
 
     run_benchmarks(quick=args.quick)
@@ -320,6 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                   "(default: one per core); with --address, at most this many in flight")
     rep.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
+    rep.add_argument("--batch", type=int, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     rep.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
@@ -337,6 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="local: a pool of processes on this machine (default); ray: Ray tasks, on a local "
                           "cluster or the one at --address (pip install 'avsim[ray]')")
+    swp.add_argument("--batch", type=int, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     swp.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
@@ -352,6 +360,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)")
     board.add_argument("--backend", choices=("local", "ray"), default="local",
                        help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
+    board.add_argument("--batch", type=int, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -377,6 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
+    bench.add_argument("--profile", action="store_true",
+                       help="where one run's and one batch's time goes, stage by stage, beside the speed targets")
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
     add_attack_commands(sub)

@@ -42,7 +42,7 @@ import torch
 from avsim.errors import ConfigError
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
 from avsim.experiments.run_task import RunSpec, execute, execute_many, worker_env
-from avsim.workers import init_worker, terminate_workers
+from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
 
@@ -84,7 +84,7 @@ def check_backend(backend: str, address: str | None = None) -> None:
 def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,
               on_record: Callable[[dict[str, Any]], None] | None = None, progress: bool = True,
               description: str = "runs", backend: str = "local", address: str | None = None,
-              batch: int = 1) -> list[dict[str, Any]]:
+              batch: int = DEFAULT_BATCH) -> list[dict[str, Any]]:
     """Run every spec; returns their records in the order of `specs`.
 
     workers: runs at once. local: processes (1 runs in this process); ray: the local cluster's

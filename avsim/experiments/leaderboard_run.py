@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from avsim.errors import RunsFailedError
+from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.leaderboard import Leaderboard, unique_specs
 from avsim.experiments.leaderboard_report import write_leaderboard_report
@@ -24,7 +25,7 @@ from avsim.metrics import write_json_atomic
 
 def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
                     resume: bool = False, progress: bool = True, backend: str = "local",
-                    address: str | None = None) -> Path:
+                    address: str | None = None, batch: int = DEFAULT_BATCH) -> Path:
     """Run the board's matrix into `out_dir` (`avsim.experiments.leaderboard`'s docstring lists what
     it writes there); returns `out_dir`."""
     check_backend(backend, address)
@@ -35,6 +36,7 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     runs = board.runs(quick)
     specs = unique_specs(board, runs)
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
+               f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
     command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)])
 
@@ -44,7 +46,8 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     if board.path.resolve() != (out / "leaderboard.toml").resolve():
         shutil.copy2(board.path, out / "leaderboard.toml")
     records, ran = run_resumable(specs, results_path, existing, resume_command=f"{command} --resume", workers=workers,
-                                 progress=progress, description="leaderboard", backend=backend, address=address)
+                                 progress=progress, description="leaderboard", backend=backend, address=address,
+                                 batch=batch)
     manifest = {
         "command": command + (" --resume" if resume else ""),
         "started_at": started_at.isoformat(timespec="seconds"),

@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from avsim.errors import ConfigError, Interrupted, RunsFailedError
+from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, run_batch, software_versions
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.run_task import RunSpec
@@ -73,7 +74,7 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
 
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
-              address: str | None = None) -> Path:
+              address: str | None = None, batch: int = DEFAULT_BATCH) -> Path:
     """Run the study's experiments; returns the results folder (see the module docstring).
 
     backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
@@ -100,7 +101,8 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
 
     try:
         records = run_batch(specs, workers=workers, root=out, on_record=on_record,
-                            progress=progress, description="reproduce", backend=backend, address=address)
+                            progress=progress, description="reproduce", backend=backend, address=address,
+                            batch=batch)
     except KeyboardInterrupt:
         raise Interrupted(f"{finished} finished run(s) are in {writer.path}, with no report; `avsim reproduce` "
                           "does not resume, so run it again for the report") from None

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.errors import ConfigError, Interrupted
+from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import run_batch
 from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
 from avsim.experiments.run_task import RunSpec
@@ -43,7 +44,8 @@ def existing_records(results_path: Path, resume: bool) -> list[Record]:
 
 def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequence[Record], *, resume_command: str,
                   workers: int | None, progress: bool = True, description: str = "runs", backend: str = "local",
-                  address: str | None = None, decorate: Callable[[Record], Record] | None = None) -> tuple[list[Record], int]:
+                  address: str | None = None, decorate: Callable[[Record], Record] | None = None,
+                  batch: int = DEFAULT_BATCH) -> tuple[list[Record], int]:
     """Run the specs that `existing` has no ok record of; returns (one record per spec, in spec
     order; how many were run). The specs' config hashes must differ.
 
@@ -71,7 +73,7 @@ def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequen
 
     try:
         run_batch(todo, workers=workers, root=results_path.parent, on_record=on_record, progress=progress,
-                  description=description, backend=backend, address=address)
+                  description=description, backend=backend, address=address, batch=batch)
     except KeyboardInterrupt:
         raise Interrupted(resume_hint(resume_command, results_path, len(finished) + len(ran))) from None
     records = [ran.get(h) or finished[h] for h in hashes]

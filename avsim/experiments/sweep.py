@@ -55,6 +55,7 @@ from typing import Any
 
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError, RunsFailedError
+from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.run_task import RunSpec
@@ -204,11 +205,12 @@ def _lookup(config: SimConfig, dotted: str) -> Scalar:
 # ---- running ---------------------------------------------------------------------------------
 
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None = None, resume: bool = False,
-              progress: bool = True, backend: str = "local", address: str | None = None) -> Path:
+              progress: bool = True, backend: str = "local", address: str | None = None,
+              batch: int = DEFAULT_BATCH) -> Path:
     """Run every point of `sweep` into `out_dir` (see the module docstring); returns `out_dir`.
 
     workers: runs at once (default: one per core; on a Ray cluster at `address`, the cluster's
-    CPUs). backend, address: see `avsim.experiments.batch.run_batch`.
+    CPUs). backend, address, batch: see `avsim.experiments.batch.run_batch`.
     Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is
     off, or the backend cannot run (Ray not installed).
     """
@@ -235,9 +237,10 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
-                                 address=address, decorate=lambda record: with_point(record, point_of[record["spec_hash"]]))
+                                 address=address, decorate=lambda record: with_point(record, point_of[record["spec_hash"]]),
+                                 batch=batch)
     wall_s = time.perf_counter() - started
-    options = [f"--workers {workers}" if workers is not None else "",
+    options = [f"--workers {workers}" if workers is not None else "", f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "",
                f"--address {address}" if address is not None else "", "--resume" if resume else ""]
     manifest = {

@@ -96,5 +96,8 @@ class OffscreenRenderer:
         return table
 
     def close(self) -> None:
+        # GL object names belong to a context: freeing ours while another renderer's context is
+        # current would delete *its* textures and buffers (seen with many cars in one process).
+        self._gl.make_current()
         self._con.free()
         self._gl.free()

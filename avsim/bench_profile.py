@@ -1,0 +1,99 @@
+"""`avsim bench --profile`: where one run's time and one batch of runs' time go on this machine,
+and issue 25's speed targets beside what was measured.
+
+Prints measured figures only (a ratio is simulated seconds per wall-clock second); nothing
+asserts. Every figure is from this process on this machine now: compare ratios within one
+printout, not against another machine's.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import tempfile
+import time
+from pathlib import Path
+
+from avsim.config import SimConfig, with_overrides
+from avsim.profiling import STAGES, profile_run
+
+# Issue 25's targets for one run at 1 thread, as real-time ratios.
+ONE_RUN_TARGETS = {"town07, one camera": 5.0, "town10, one camera": 3.0, "town07, two cameras": 3.0}
+
+
+def _config(town: str, policy: str, perception: str, precision: str) -> SimConfig:
+    return with_overrides(SimConfig(), {"scenario": {"town": town}, "policy": {"name": policy},
+                                        "perception": {"kind": perception, "detector_precision": precision}})
+
+
+def _print_stages(label: str, config: SimConfig, rrd: bool = False) -> float:
+    """Profile one run, print its stage table; returns its real-time ratio."""
+    with tempfile.TemporaryDirectory() as folder:
+        rrd_path = str(Path(folder) / "run.rrd") if rrd else None
+        result, wall_s, seconds, steps = profile_run(config, rrd_path=rrd_path)
+        size = f", {os.path.getsize(rrd_path) / 1e6:.1f} MB .rrd" if rrd_path else ""
+    ratio = result.sim_time_s / wall_s
+    print(f"\n  {label}: {result.sim_time_s:.1f} s simulated in {wall_s:.1f} s = {ratio:.2f}x real time "
+          f"({steps} control steps{size})")
+    print(f"    {'stage':34s} {'s':>6s} {'share':>6s} {'ms/step':>8s}")
+    for stage in (*STAGES, "setup (building the run)", "other"):
+        if stage in seconds:
+            print(f"    {stage:34s} {seconds[stage]:6.2f} {100 * seconds[stage] / wall_s:5.1f}% "
+                  f"{1e3 * seconds[stage] / max(1, steps):8.2f}")
+    return ratio
+
+
+def _batch_rate(configs: list[SimConfig], workers: int, batch: int) -> tuple[float, float, int]:
+    """(simulated seconds per wall second per core, wall time [s], bytes of records sent back) of
+    `configs` run as one local batch."""
+    from avsim.experiments.batch import run_batch
+    from avsim.experiments.run_task import RunSpec
+
+    specs = [RunSpec("bench", f"run{i}", config.scenario.seed, config) for i, config in enumerate(configs)]
+    started = time.perf_counter()
+    records = run_batch(specs, workers=workers, progress=False, batch=batch)
+    wall_s = time.perf_counter() - started
+    sim_s = sum(r["result"]["sim_time_s"] for r in records if r["status"] == "ok")
+    return sim_s / wall_s / workers, wall_s, len(pickle.dumps(records))
+
+
+def run_profile(quick: bool = False) -> None:
+    """Print the stage profiles of single runs, then of a batch, then the targets."""
+    print("avsim bench --profile: one run's time by stage (exclusive: a stage excludes those it calls), "
+          "then a batch's; 1 torch thread")
+    ratios: dict[str, float] = {}
+    for precision in ("fp32", "bf16"):
+        ratios[f"town07, one camera, {precision}"] = _print_stages(
+            f"town07, baseline (one camera), detector {precision}", _config("town07", "baseline", "detector", precision))
+    if not quick:
+        for precision in ("fp32", "bf16"):
+            ratios[f"town10, one camera, {precision}"] = _print_stages(
+                f"town10, baseline (one camera), detector {precision}", _config("town10", "baseline", "detector", precision))
+            ratios[f"town07, two cameras, {precision}"] = _print_stages(
+                f"town07, side_camera (two cameras), detector {precision}", _config("town07", "side_camera", "detector", precision))
+        _print_stages("town07, baseline, detector fp32, recorded (--rrd)", _config("town07", "baseline", "detector", "fp32"), rrd=True)
+        ratios["coco"] = _print_stages("town07, baseline (one camera), coco", _config("town07", "baseline", "coco", "fp32"))
+
+    # A batch: the same 8 runs one at a time and 8 to a worker, on one worker and on one per core.
+    runs = 4 if quick else 8
+    configs = [with_overrides(_config("town07", "baseline", "detector", "bf16"), {"scenario": {"seed": seed}})
+               for seed in range(runs)]
+    print(f"\n  batch of {runs} runs (town07, baseline, detector bf16, seeds 0-{runs - 1}):")
+    print(f"    {'workers':>7s} {'batch':>5s} {'wall s':>7s} {'sim s per wall s per core':>26s} {'records sent':>13s}")
+    per_core: dict[tuple[int, int], float] = {}
+    for workers in sorted({1, min(2, os.cpu_count() or 1)}):
+        for batch in (1, runs):
+            rate, wall_s, sent = _batch_rate(configs, workers, batch)
+            per_core[(workers, batch)] = rate
+            print(f"    {workers:7d} {batch:5d} {wall_s:7.1f} {rate:26.2f} {sent / 1e3:10.0f} kB")
+
+    print("\n  targets (issue 25) and what this printout measured:")
+    for name, target in ONE_RUN_TARGETS.items():
+        measured = ", ".join(f"{precision} {ratios[f'{name}, {precision}']:.2f}x" for precision in ("fp32", "bf16")
+                             if f"{name}, {precision}" in ratios)
+        if measured:
+            print(f"    detector closed loop, {name:22s} >= {target:.0f}x real time: {measured}")
+    if "coco" in ratios:
+        print(f"    coco closed loop, one camera           >= 1.5x per core: {ratios['coco']:.2f}x alone")
+    gain = per_core[(1, runs)] / per_core[(1, 1)]
+    print(f"    batching, sim s per wall s per core at N={runs} over N=1 (1 worker) >= 1.5: {gain:.2f}")

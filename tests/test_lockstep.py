@@ -1,0 +1,80 @@
+"""Many cars in one process (`avsim.lockstep`): a run's result does not depend on its batch."""
+
+import dataclasses
+
+import pytest
+
+from avsim.experiments.batch import lockstep_groups, run_batch
+from avsim.lockstep import run_lockstep
+from avsim.runner import run_config
+from helpers import SHORT_RUN, make_config, short_run_spec
+
+# Short runs that see the sign and brake within their 3 s: a batch's cars step through the
+# network call, the policy, the brakes and the physics together.
+SHORT = {**SHORT_RUN, "speed_kmh": 60.0, "start_speed_kmh": 60.0}
+
+
+def _mixed_cells(perception: dict) -> list:
+    """Eight cells: both cameras, every town, an attack texture, sensor noise, and an oracle car."""
+    cells = [
+        ({"town": "town07"}, "baseline", {}),
+        ({"town": "town10", "seed": 3}, "side_camera", {"sensor_noise_std": 3.0}),
+        ({"town": "town03", "placement": "far", "sign": "yang"}, "adjusted", {"sensor_noise_std": 2.0}),
+        ({"town": "town07", "seed": 2, "sign": "driveby_detector"}, "baseline", {}),
+        ({"town": "town10", "placement": "near"}, "combined", {}),
+        ({"town": "town03", "seed": 5}, "study_stack", {}),
+        ({"town": "town07", "seed": 1}, "side_camera", {"sensor_noise_std": 1.0}),
+    ]
+    configs = [make_config(scenario={**SHORT, **scenario}, policy={"name": policy}, loop={"max_time_s": 3.0},
+                           perception={**perception, **extra}) for scenario, policy, extra in cells]
+    oracle = make_config(scenario={**SHORT, "town": "town10"}, policy={"name": "baseline"}, loop={"max_time_s": 3.0})
+    return [*configs, oracle]
+
+
+@pytest.mark.parametrize("perception", [
+    {"kind": "detector", "detector_precision": "bf16"},
+    {"kind": "detector", "detector_precision": "fp32"},
+    {"kind": "detector", "detector_precision": "bf16", "purify": "jpeg"},
+], ids=["detector-bf16", "detector-fp32", "detector-bf16-jpeg"])
+def test_a_mixed_batch_of_eight_gives_each_run_its_lone_result_bit_for_bit(perception):
+    configs = _mixed_cells(perception)
+    alone = [run_config(config)[0] for config in configs]
+    together = run_lockstep(configs)
+    assert [output.result.to_json_dict() for output in together] == [result.to_json_dict() for result in alone]
+    # the batch really perceived: some car saw a stop sign
+    assert any(output.result.to_json_dict()["first_detection_dist_m"] is not None for output in together[:-1])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["coco", "ensemble"])
+def test_the_real_detectors_batch_without_changing_a_run(kind):
+    configs = _mixed_cells({"kind": kind})[:4]
+    alone = [run_config(config)[0] for config in configs]
+    assert [o.result.to_json_dict() for o in run_lockstep(configs)] == [r.to_json_dict() for r in alone]
+
+
+def test_a_failing_run_fails_alone_and_the_batch_goes_on():
+    good = make_config(scenario=SHORT, loop={"max_time_s": 1.0})
+    bad = dataclasses.replace(good, scenario=dataclasses.replace(good.scenario, sign="no_such_texture"))
+    outputs = run_lockstep([good, bad, good])
+    assert isinstance(outputs[1], Exception) and "no_such_texture" in str(outputs[1])
+    assert outputs[0].result.to_json_dict() == outputs[2].result.to_json_dict() == run_config(good)[0].to_json_dict()
+
+
+def test_batch_records_equal_lone_records_apart_from_wall_time():
+    specs = [short_run_spec(f"cell{seed}", seed, perception={"kind": "detector", "detector_precision": "bf16"},
+                            loop={"max_time_s": 2.0}) for seed in range(3)]
+    strip = lambda records: [{k: v for k, v in r.items() if k != "wall_s"} for r in records]  # noqa: E731
+    lone = run_batch(specs, workers=1, progress=False)
+    batched = run_batch(specs, workers=1, progress=False, batch=8)
+    assert strip(batched) == strip(lone)
+    assert all(r["status"] == "ok" and r["wall_s"] > 0 for r in batched)
+
+
+@pytest.mark.parametrize("count, workers, batch, sizes", [
+    (10, 2, 8, [5, 5]), (16, 2, 8, [8, 8]), (17, 2, 8, [8, 8, 1]), (3, 1, 1, [1, 1, 1]), (3, 4, 8, [1, 1, 1]),
+])
+def test_groups_cover_every_run_once_and_feed_every_worker(count, workers, batch, sizes):
+    groups = lockstep_groups(count, workers, batch)
+    assert [len(g) for g in groups] == sizes
+    assert [i for g in groups for i in g] == list(range(count))
