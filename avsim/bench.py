@@ -11,7 +11,7 @@ import time
 import mujoco
 
 from avsim.config import COCO_INPUTS, COCO_PRECISIONS, SimConfig, with_overrides
-from avsim.gym.bench import print_env_rows
+from avsim.gym.bench import print_env_rows, print_vector_rows
 from avsim.loop import ClosedLoop
 from avsim.runner import run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
@@ -152,6 +152,7 @@ def run_benchmarks(quick: bool = False) -> None:
                       (("one camera, no ABS or TCS", "baseline"),))
     # The Gymnasium environment against the closed loop it drives (avsim/gym/bench.py).
     print_env_rows(base, ("oracle",) if quick else ("oracle", "detector"), repeats=1 if quick else 3)
+    print_vector_rows((1, 8) if quick else (1, 8, 32), steps=10 if quick else 20)
     # The runs use perception.threads (1 by default: bit-identical everywhere, and a pool of
     # single-threaded workers fills the cores); 2 threads is what one run alone could use.
     roi = base.perception.front_roi_px

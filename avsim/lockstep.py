@@ -97,39 +97,46 @@ def _start(config: SimConfig, detectors: FrameDetectorCache, rrd_path: str | os.
         raise
 
 
+def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]]) -> list[dict[str, list[Detection]] | Exception]:
+    """Perceive each (loop, cameras) at its current state, as `loop.perceive(cameras)` would, with
+    one network call per shared detector over all of their frames. Returns, per car, its
+    detections by camera, or the exception its rendering raised."""
+    out: list[dict[str, list[Detection]] | Exception] = []
+    groups: dict[int, list[tuple[int, FrameRequest]]] = {}
+    for index, (loop, cameras) in enumerate(cars):
+        try:
+            if isinstance(loop.perception, FramePerception):
+                for request in loop.perception.frame_requests(loop.rig, loop.data, cameras):
+                    groups.setdefault(id(loop.perception.detector), []).append((index, request))
+                out.append({camera: [] for camera in cameras})
+            else:
+                out.append(loop.perceive(cameras))
+        except Exception as exc:  # noqa: BLE001 - this car's failure, not the batch's
+            out.append(exc)
+    for group in groups.values():
+        group = [(index, request) for index, request in group if not isinstance(out[index], Exception)]
+        if not group:
+            continue
+        perception = cars[group[0][0]][0].perception
+        found = detect_many(perception.detector, [request for _, request in group])
+        for (index, (_, camera, _)), frame_detections in zip(group, found):
+            out[index][camera] = cars[index][0].perception.keep(frame_detections)
+    return out
+
+
 def _tick(cars: dict[int, _Car]) -> dict[int, Exception]:
     """One control step of every car: render all, one network call per shared detector, then each
     car's decision, actuation and physics. Returns the cars whose run raised, with the exception."""
+    indices = list(cars)
+    perceived = perceive_together([(cars[i].loop, cars[i].loop.policy.cameras) for i in indices])
     failed: dict[int, Exception] = {}
-    detections: dict[int, dict[str, list[Detection]]] = {}
-    # render: each frame perception's requests, grouped by the detector that serves them
-    groups: dict[int, list[tuple[int, FrameRequest]]] = {}
-    for index, car in cars.items():
-        loop = car.loop
-        try:
-            if isinstance(loop.perception, FramePerception):
-                for request in loop.perception.frame_requests(loop.rig, loop.data, loop.policy.cameras):
-                    groups.setdefault(id(loop.perception.detector), []).append((index, request))
-                detections[index] = {camera: [] for camera in loop.policy.cameras}
-            else:
-                detections[index] = loop.perceive(loop.policy.cameras)
-        except Exception as exc:  # noqa: BLE001
-            failed[index] = exc
-    # perceive: one call per detector over every car's frames
-    for group in groups.values():
-        group = [(index, request) for index, request in group if index not in failed]
-        if not group:
+    for index, detections in zip(indices, perceived):
+        if isinstance(detections, Exception):
+            failed[index] = detections
             continue
-        perception = cars[group[0][0]].loop.perception
-        found = detect_many(perception.detector, [request for _, request in group])
-        for (index, (_, camera, _)), frame_detections in zip(group, found):
-            detections[index][camera] = cars[index].loop.perception.keep(frame_detections)
-    # decide -> actuate -> physics -> record, car by car
-    for index, car in cars.items():
-        if index in failed:
-            continue
+        car = cars[index]
         try:
-            record = car.loop.step_with(detections[index])
+            record = car.loop.step_with(detections)
             if car.on_step is not None:
                 car.on_step(car.loop, record)
         except Exception as exc:  # noqa: BLE001

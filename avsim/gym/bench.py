@@ -70,3 +70,30 @@ def print_env_rows(base: SimConfig, perceptions: tuple[str, ...], repeats: int) 
               f"{100 * (plain_cpu_ms / loop_cpu_ms - 1):+.1f}% in CPU time; target < 10%)")
         print(f"  gym env, {perception:8s} town07, front image     {1e3 / image_ms:6.1f} steps/s   "
               f"(rendering the observed image adds {image_ms - plain_ms:.1f} ms a step; reset {reset_s:.2f} s)")
+
+
+def _vector_steps_per_s(num_envs: int, steps: int) -> tuple[float, float]:
+    """(environment steps per wall second, per CPU second) of `gymnasium.make_vec`'s vector entry point
+    with `num_envs` detector environments (bf16, no images), driven with constant cruise actions."""
+    import numpy as np
+
+    envs = gymnasium.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point", perception="detector",
+                              images=False, config_overrides={"perception": {"detector_precision": "bf16"}})
+    envs.reset(seed=0)
+    actions = np.tile(np.array([0.3, 0.0], np.float32), (num_envs, 1))
+    envs.step(actions)  # first frames of each renderer: left out
+    start, start_cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        envs.step(actions)
+    elapsed_s, cpu_s = time.perf_counter() - start, time.process_time() - start_cpu
+    envs.close()
+    return num_envs * steps / elapsed_s, num_envs * steps / cpu_s
+
+
+def print_vector_rows(counts: tuple[int, ...] = (1, 8, 32), steps: int = 20) -> None:
+    """Steps per second of the vector environment at each of `counts` environments."""
+    rates = {count: _vector_steps_per_s(count, steps) for count in counts}
+    for count, (per_s, per_cpu_s) in rates.items():
+        gain = per_cpu_s / rates[counts[0]][1]
+        print(f"  gym make_vec, detector bf16 N={count:<3d}     {per_s:6.1f} env steps/s   ({per_cpu_s:.1f} per CPU second; "
+              f"{gain:.2f}x N={counts[0]}'s per CPU second)")

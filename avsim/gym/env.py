@@ -54,6 +54,8 @@ from avsim.gym.observation import detections_array, observation_space
 from avsim.gym.reward import reward_terms
 from avsim.loop import ClosedLoop
 from avsim.metrics import STOPPED_SPEED_MPS
+from avsim.perception.base import Detection
+from avsim.perception.factory import FrameDetectorCache
 from avsim.sensors.camera import CAMERA_NAMES
 from avsim.vehicle.physics import Controls
 
@@ -105,7 +107,9 @@ class StopSignEnv(gymnasium.Env):
     images: whether each camera's image is in the observation (False: speed and detections only);
     full_control: the agent steers too; render_mode: None or "rgb_array" (the front camera);
     config_overrides: any other `SimConfig` key, nested ({"loop": {"max_time_s": 30}}), checked as
-    the CLI's `--set` is: a wrong key or value is a one-line `ConfigError`.
+    the CLI's `--set` is: a wrong key or value is a one-line `ConfigError`;
+    detectors: where the perception takes its network from, shared with other environments
+    (`avsim.gym.vector`); None builds this environment's own.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
@@ -113,7 +117,7 @@ class StopSignEnv(gymnasium.Env):
     def __init__(self, town: str | None = None, placement: str | None = None, sign: str | None = None,
                  speed_kmh: float | None = None, cameras: Sequence[str] = ("front",), perception: str | None = None,
                  render_mode: str | None = None, full_control: bool = False, images: bool = True,
-                 config_overrides: Mapping[str, Any] | None = None) -> None:
+                 config_overrides: Mapping[str, Any] | None = None, detectors: FrameDetectorCache | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.cameras = _checked_cameras(cameras)
@@ -133,7 +137,8 @@ class StopSignEnv(gymnasium.Env):
             self.action_space = spaces.Box(np.zeros(2, np.float32), np.ones(2, np.float32), dtype=np.float32)
         # One loop built now checks the town, placement, sign texture and perception weights
         # before any episode runs; episodes build their own (`reset`).
-        probe = ClosedLoop(self.config)
+        self._detectors = detectors
+        probe = ClosedLoop(self.config, detectors)
         self._full_lock_rad = float(probe.model.actuator(_STEER_ACTUATOR).ctrlrange[1])
         probe.close()
         self._loop: ClosedLoop | None = None
@@ -142,6 +147,17 @@ class StopSignEnv(gymnasium.Env):
 
     # ---- Gymnasium API ---------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        info = self.begin_episode(seed, options)
+        return self.observe(self._loop.perceive(self.cameras)), info
+
+    def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        reward, terminated, truncated, info = self.act(action)
+        return self.observe(self._loop.perceive(self.cameras)), reward, terminated, truncated, info
+
+    # ---- the halves of reset and step, around perception (`avsim.gym.vector` perceives many at once) ----
+    def begin_episode(self, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
+        """`reset` up to perception: a fresh loop at the episode's seed; returns the reset's info.
+        `observe` the loop's perception of `cameras` to complete it."""
         if seed is not None:
             seed = int(seed) if isinstance(seed, np.integer) else seed
             check_seed(seed, "reset(seed=...)")
@@ -150,15 +166,16 @@ class StopSignEnv(gymnasium.Env):
         super().reset(seed=seed)
         episode_seed = seed if seed is not None else int(self.np_random.integers(0, MAX_SEED, endpoint=True))
         self._close_loop()
-        self._loop = ClosedLoop(with_overrides(self.config, {"scenario": {"seed": episode_seed}}))
+        self._loop = ClosedLoop(with_overrides(self.config, {"scenario": {"seed": episode_seed}}), self._detectors)
         self._speed_mps = self._loop.vehicle.speed_mps()
         self._accel_mps2 = 0.0
         self._moved = self._speed_mps >= STOPPED_SPEED_MPS
         self._ended = False
-        self._sense()
-        return self._observation_copy(), {**self._state_info(), "seed": episode_seed}
+        return {**self._state_info(), "seed": episode_seed}
 
-    def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+    def act(self, action: Any) -> tuple[float, bool, bool, dict[str, Any]]:
+        """`step` up to perception: apply the action and run the physics; returns (reward, terminated,
+        truncated, info). `observe` the loop's perception of `cameras` to complete it."""
         loop = self._require_episode()
         controls = self._controls(action)
         line_before_m, _ = self._distances_m()
@@ -174,12 +191,31 @@ class StopSignEnv(gymnasium.Env):
                              accel_before_mps2=self._accel_mps2, accel_after_mps2=accel_mps2, stopped=stopped, ran_sign=ran_sign)
         self._moved = self._moved or speed_mps >= STOPPED_SPEED_MPS
         self._speed_mps, self._accel_mps2 = speed_mps, accel_mps2
-        self._sense()
         info = {**self._state_info(), "reward_terms": terms.to_dict()}
         if terminated or truncated:
             info["result"] = loop.result(stopped).to_json_dict()
             self._ended = True
-        return self._observation_copy(), terms.total, terminated, truncated, info
+        return terms.total, terminated, truncated, info
+
+    def observe(self, detections: dict[str, list[Detection]]) -> dict[str, np.ndarray]:
+        """Complete `begin_episode` or `act` with the perception of `cameras` at the current state
+        (`loop.perceive(cameras)`'s detections): the next observation, the agent's own copy."""
+        self._detections = detections
+        loop = self._loop
+        width, height = self.config.camera.width_px, self.config.camera.height_px
+        observation = {"speed_mps": np.array([self._speed_mps], np.float32)}
+        for camera in self.cameras:
+            if self.images:
+                observation[f"image_{camera}"] = loop.rig.render_rgb(loop.data, camera)
+            if f"detections_{camera}" in self.observation_space.spaces:
+                observation[f"detections_{camera}"] = detections_array(detections[camera], width, height)
+        self._observation = observation
+        return self._observation_copy()
+
+    @property
+    def loop(self) -> ClosedLoop | None:
+        """The episode's closed loop (None before the first reset)."""
+        return self._loop
 
     def render(self) -> np.ndarray | None:
         """The front camera's RGB image (H, W, 3) uint8 of the current state (render_mode "rgb_array")."""
@@ -211,19 +247,6 @@ class StopSignEnv(gymnasium.Env):
         else:
             steer_rad = loop.lane_steer_rad(loop.vehicle.speed_mps())
         return Controls(throttle=float(values[0]), brake=float(values[1]), steer_rad=steer_rad)
-
-    def _sense(self) -> None:
-        """Render and perceive the current state: the next observation."""
-        loop = self._loop
-        self._detections = loop.perceive(self.cameras)
-        width, height = self.config.camera.width_px, self.config.camera.height_px
-        observation = {"speed_mps": np.array([self._speed_mps], np.float32)}
-        for camera in self.cameras:
-            if self.images:
-                observation[f"image_{camera}"] = loop.rig.render_rgb(loop.data, camera)
-            if f"detections_{camera}" in self.observation_space.spaces:
-                observation[f"detections_{camera}"] = detections_array(self._detections[camera], width, height)
-        self._observation = observation
 
     def _observation_copy(self) -> dict[str, np.ndarray]:
         # The caller owns what it is given; `render` reads the kept one.

@@ -1,0 +1,72 @@
+"""`gymnasium.make_vec("avsim/StopSign-v0", vectorization_mode="vector_entry_point")`: N episodes
+perceived together give what Gymnasium's own synchronous vector of the same environments gives."""
+
+import gymnasium
+import numpy as np
+import pytest
+
+import avsim.gym
+import avsim.gym.vector
+from avsim.errors import ConfigError
+
+# Episodes of a few dozen steps that see the sign, so an autoreset happens within the test.
+SHORT = {"scenario": {"start_dist_m": 45.0, "speed_kmh": 40.0, "start_speed_kmh": 40.0}, "loop": {"max_time_s": 1.5}}
+
+
+def _make_vec(mode: str, num_envs: int, **kwargs):
+    return gymnasium.make_vec(avsim.gym.ENV_ID, num_envs=num_envs, vectorization_mode=mode,
+                              config_overrides={**SHORT, "perception": {"detector_precision": "bf16"}}, **kwargs)
+
+
+def _rollout(envs, steps: int, seed: int):
+    """reset(seed) then `steps` steps of fixed, seeded actions; every output kept."""
+    actions = np.random.default_rng(7).uniform(0, 1, (steps, *envs.action_space.shape)).astype(np.float32)
+    out = [envs.reset(seed=seed)]
+    for action in actions:
+        out.append(envs.step(action))
+    envs.close()
+    return out
+
+
+def _assert_same(a, b):
+    if isinstance(a, dict):
+        assert sorted(a) == sorted(b)
+        for key in a:
+            _assert_same(a[key], b[key])
+    elif isinstance(a, (tuple, list)):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            _assert_same(x, y)
+    elif isinstance(a, np.ndarray) and a.dtype == object:
+        assert a.shape == b.shape
+        for x, y in zip(a, b):
+            _assert_same(x, y)
+    else:
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("kwargs", [{"perception": "detector", "images": False},
+                                    {"perception": "oracle", "cameras": ("front", "side")}], ids=["detector", "oracle"])
+def test_the_vector_entry_point_gives_the_same_episodes_as_gymnasiums_sync_vector(kwargs):
+    together = _rollout(_make_vec("vector_entry_point", 4, **kwargs), 40, seed=3)
+    alone = _rollout(_make_vec("sync", 4, **kwargs), 40, seed=3)
+    _assert_same(together, alone)
+    ends = np.array([step[2] | step[3] for step in together[1:]])
+    assert ends.any(), "an episode should end (and autoreset) within the rollout"
+    seeds = together[0][1]["seed"]
+    assert list(seeds) == [3, 4, 5, 6]
+
+
+def test_the_vector_env_has_gymnasiums_batched_spaces_and_autoreset_metadata():
+    envs = _make_vec("vector_entry_point", 3, perception="oracle", images=False)
+    assert envs.num_envs == 3
+    assert envs.observation_space.contains(envs.reset(seed=0)[0])
+    assert envs.action_space.shape == (3, 2)
+    assert envs.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.NEXT_STEP
+    envs.close()
+
+
+@pytest.mark.parametrize("num_envs", [0, -2, 1.5])
+def test_a_bad_count_of_environments_is_one_line(num_envs):
+    with pytest.raises(ConfigError, match="num_envs"):
+        avsim.gym.vector.StopSignVectorEnv(num_envs=num_envs, perception="oracle")
