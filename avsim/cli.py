@@ -102,7 +102,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address, batch=args.batch)
+                    backend=args.backend, address=args.address, batch=args.batch, everything=args.all)
     print((out / "report.md").read_text())
     print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
     return 0
@@ -322,6 +322,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
     rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
+    rep.add_argument("--all", action="store_true",
+                     help="also every other experiment file: the sensitivity, the COCO network's closed loop and the "
+                          "attack-success files (hours on 2 cores; the leaderboard is `avsim leaderboard`)")
     rep.add_argument("--workers", type=int, help="runs at once: worker processes, or the local Ray cluster's CPUs "
                                                   "(default: one per core); with --address, at most this many in flight")
     rep.add_argument("--backend", choices=("local", "ray"), default="local",

@@ -32,14 +32,22 @@ from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
 
 EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
-# The study's tables and figure, then what avsim adds beyond the study; report order.
+# `avsim reproduce` (`make run`): the study's tables and figure, then the additions that fit its
+# time budget; report order.
 STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_attacked_defended",
-                     "fig3_detection", "adaptive_attacker", "wet_road", "sensitivity", "coco_detector")
+                     "fig3_detection", "adaptive_attacker", "wet_road")
+# `avsim reproduce --all` adds every other experiment file: the constant sensitivity, the COCO
+# network's closed loop, and the attack files (experiments/attacks/); paths relative to EXPERIMENTS_DIR.
+MORE_EXPERIMENTS = ("sensitivity", "coco_detector", "attacks/success_town07", "attacks/success_towns",
+                    "attacks/range_inflation_adjusted", "attacks/driveby_detector_town07", "attacks/success_coco",
+                    "attacks/success_coco_towns", "attacks/sensitivity_coco_town10")
 
 
-def load_study(experiment_paths: list[Path] | None = None, quick: bool = False) -> list[Experiment]:
-    """The experiments to run; `quick` keeps one seed per cell."""
-    paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in STUDY_EXPERIMENTS]
+def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False) -> list[Experiment]:
+    """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
+    experiment file); `quick` keeps one seed per cell."""
+    names = STUDY_EXPERIMENTS + (MORE_EXPERIMENTS if everything else ())
+    paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in names]
     experiments = [load_experiment(path) for path in paths]
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
@@ -74,15 +82,18 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
 
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
-              address: str | None = None, batch: int = DEFAULT_BATCH) -> Path:
-    """Run the study's experiments; returns the results folder (see the module docstring).
+              address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False) -> Path:
+    """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
+    returns the results folder (see the module docstring).
 
     backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
     the experiment files and `workers`, before the results folder is made.
     """
     from avsim.experiments.report import write_report
 
-    experiments = load_study(experiment_paths, quick)
+    if everything and experiment_paths:
+        raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
+    experiments = load_study(experiment_paths, quick, everything)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
     started = time.perf_counter()
