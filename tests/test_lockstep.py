@@ -33,8 +33,8 @@ def _mixed_cells(perception: dict) -> list:
 
 @pytest.mark.parametrize("perception", [
     {"kind": "detector", "detector_precision": "bf16"},
-    {"kind": "detector", "detector_precision": "fp32"},
-    {"kind": "detector", "detector_precision": "bf16", "purify": "jpeg"},
+    pytest.param({"kind": "detector", "detector_precision": "fp32"}, marks=pytest.mark.slow),
+    pytest.param({"kind": "detector", "detector_precision": "bf16", "purify": "jpeg"}, marks=pytest.mark.slow),
 ], ids=["detector-bf16", "detector-fp32", "detector-bf16-jpeg"])
 def test_a_mixed_batch_of_eight_gives_each_run_its_lone_result_bit_for_bit(perception):
     configs = _mixed_cells(perception)

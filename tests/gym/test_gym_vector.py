@@ -45,7 +45,7 @@ def _assert_same(a, b):
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("kwargs", [{"perception": "detector", "images": False},
+@pytest.mark.parametrize("kwargs", [pytest.param({"perception": "detector", "images": False}, marks=pytest.mark.slow),
                                     {"perception": "oracle", "cameras": ("front", "side")}], ids=["detector", "oracle"])
 def test_the_vector_entry_point_gives_the_same_episodes_as_gymnasiums_sync_vector(kwargs):
     together = _rollout(_make_vec("vector_entry_point", 4, **kwargs), 40, seed=3)
