@@ -90,7 +90,7 @@ def build_frame_detector(config: PerceptionConfig) -> "FrameDetector":
 class FrameDetectorCache:
     """One frame detector per distinct perception config, shared by the runs that use it.
 
-    The lock-step batch (`avsim.experiments.lockstep`) builds its runs' perceptions from one cache,
+    The lock-step batch (`avsim.lockstep`) builds its runs' perceptions from one cache,
     so that cars with the same perception share one network and its calls. A detector holds no
     per-run state (the per-run sensor noise lives in the perception around it), so sharing it
     changes no result.

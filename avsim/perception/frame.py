@@ -11,7 +11,7 @@ after the other); the frames render, and draw their noise, in camera order first
 A detector that reads only part of a frame says which (`pixels_needed`, e.g. the own detector's
 crop around the region of interest): then only that part is read back from the renderer and
 noised, with the same pixel values as in a whole frame. The lock-step batch
-(`avsim.experiments.lockstep`) calls the two halves of `detect_cameras` itself, `frame_requests`
+(`avsim.lockstep`) calls the two halves of `detect_cameras` itself, `frame_requests`
 then `keep`, to run many cars' frames through one network call (`detect_many`).
 """
 

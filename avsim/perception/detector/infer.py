@@ -12,7 +12,7 @@ AVX-512 BF16 dot products, summing in float32; the maps are decoded in float32).
 differ from fp32's by bf16 rounding (`avsim.perception.detector.precision_agreement` measures by
 how much).
 
-Batches (`detect_many`, the lock-step batch of `avsim.experiments.lockstep`): a frame's
+Batches (`detect_many`, the lock-step batch of `avsim.lockstep`): a frame's
 detections must not depend on which other frames share its network call. Measured with the
 shipped weights at 1 thread on the front crop: under bf16 every image's maps are the same, bit
 for bit, at every batch size from 1 to 8; under fp32 oneDNN picks another kernel for a batch of
