@@ -33,6 +33,7 @@ import contextlib
 import time
 import types
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 STAGES = ("render and read-back", "sensor noise", "detector pre-processing", "detector network",
@@ -41,12 +42,18 @@ STAGES = ("render and read-back", "sensor noise", "detector pre-processing", "de
 
 
 class StageTimer:
-    """Exclusive wall time per named stage, from callables it wraps (see the module docstring)."""
+    """Exclusive wall and CPU time per named stage, from callables it wraps (module docstring).
+
+    CPU time is this process's (`time.process_time`: every thread, the renderer's included). It
+    is what a stage costs whatever else the machine runs; wall time also counts waiting for a core.
+    """
 
     def __init__(self) -> None:
         self._seconds: dict[str, float] = {}
+        self._cpu_seconds: dict[str, float] = {}
         self._calls: dict[str, int] = {}
-        self._stack: list[list[float]] = []  # per open stage: [start, time spent in nested stages]
+        # per open stage: [wall start, CPU start, wall and CPU time spent in nested stages]
+        self._stack: list[list[float]] = []
         self._restore: list[Callable[[], None]] = []
 
     def wrap(self, owner: Any, name: str, stage: str) -> None:
@@ -54,16 +61,18 @@ class StageTimer:
         original = getattr(owner, name)
 
         def timed(*args: Any, **kwargs: Any) -> Any:
-            self._stack.append([time.perf_counter(), 0.0])
+            self._stack.append([time.perf_counter(), time.process_time(), 0.0, 0.0])
             try:
                 return original(*args, **kwargs)
             finally:
-                start, nested = self._stack.pop()
-                elapsed = time.perf_counter() - start
+                start, cpu_start, nested, cpu_nested = self._stack.pop()
+                elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_start
                 self._seconds[stage] = self._seconds.get(stage, 0.0) + elapsed - nested
+                self._cpu_seconds[stage] = self._cpu_seconds.get(stage, 0.0) + cpu - cpu_nested
                 self._calls[stage] = self._calls.get(stage, 0) + 1
                 if self._stack:
-                    self._stack[-1][1] += elapsed
+                    self._stack[-1][2] += elapsed
+                    self._stack[-1][3] += cpu
 
         had_own = isinstance(owner, types.ModuleType) or name in vars(owner)
         setattr(owner, name, timed)
@@ -86,8 +95,12 @@ class StageTimer:
             self._restore.clear()
 
     def seconds(self) -> dict[str, float]:
-        """Exclusive time per stage [s], for the stages that were called."""
+        """Exclusive wall time per stage [s], for the stages that were called."""
         return dict(self._seconds)
+
+    def cpu_seconds(self) -> dict[str, float]:
+        """Exclusive CPU time per stage [s], for the stages that were called."""
+        return dict(self._cpu_seconds)
 
     def calls(self) -> dict[str, int]:
         return dict(self._calls)
@@ -132,19 +145,29 @@ def instrument(timer: StageTimer, loop: Any) -> None:
 
 
 
-def profile_run(config: Any, *, rrd_path: str | None = None) -> tuple[Any, float, dict[str, float], int]:
-    """Run `config` once with every stage timed (and recorded to `rrd_path` if given).
+@dataclass(frozen=True)
+class RunProfile:
+    """One profiled run: its result, control steps, and wall and CPU time [s], in all and per stage
+    (exclusive; "setup (building the run)" and "other" included, so the stages add up)."""
 
-    Returns (result, wall time [s], exclusive seconds per stage incl. "other", control steps).
-    The run's result is the unprofiled run's: the wrappers only read the clock.
-    """
+    result: Any
+    steps: int
+    wall_s: float
+    cpu_s: float
+    stage_wall_s: dict[str, float]
+    stage_cpu_s: dict[str, float]
+
+
+def profile_run(config: Any, *, rrd_path: str | None = None) -> RunProfile:
+    """Run `config` once with every stage timed (and recorded to `rrd_path` if given). The run's
+    result is the unprofiled run's: the wrappers only read the clocks."""
     from avsim.loop import ClosedLoop
     from avsim.runner import attach_recorders
 
     timer = StageTimer()
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     loop = ClosedLoop(config)
-    setup_s = time.perf_counter() - started
+    setup_s, setup_cpu_s = time.perf_counter() - started, time.process_time() - cpu_started
     try:
         with timer.running(), contextlib.ExitStack() as recorders:
             instrument(timer, loop)
@@ -152,10 +175,12 @@ def profile_run(config: Any, *, rrd_path: str | None = None) -> tuple[Any, float
             result = loop.run(on_step=None if hook is None else _timed_hook(timer, hook))
     finally:
         loop.close()
-    wall_s = time.perf_counter() - started
+    wall_s, cpu_s = time.perf_counter() - started, time.process_time() - cpu_started
     seconds = {"setup (building the run)": setup_s, **timer.seconds()}
     seconds["other"] = max(0.0, wall_s - sum(seconds.values()))
-    return result, wall_s, seconds, len(loop.records)
+    cpu_seconds = {"setup (building the run)": setup_cpu_s, **timer.cpu_seconds()}
+    cpu_seconds["other"] = max(0.0, cpu_s - sum(cpu_seconds.values()))
+    return RunProfile(result, len(loop.records), wall_s, cpu_s, seconds, cpu_seconds)
 
 
 def _timed_hook(timer: StageTimer, hook: Callable[..., None]) -> Callable[..., None]:

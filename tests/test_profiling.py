@@ -13,11 +13,13 @@ from helpers import SHORT_RUN, make_config
 def test_a_profiled_run_has_the_unprofiled_result_and_its_stages_add_up(perception, tmp_path):
     config = make_config(scenario=SHORT_RUN, perception={"kind": perception}, loop={"max_time_s": 2.0})
     mujoco_before = physics.mujoco
-    result, wall_s, seconds, steps = profile_run(config, rrd_path=str(tmp_path / "run.rrd"))
-    assert result.to_json_dict() == run_config(config)[0].to_json_dict()
-    assert steps == 40
-    assert abs(sum(seconds.values()) - wall_s) < 1e-6 * max(1.0, wall_s) + 1e-9
-    assert all(s >= 0 for s in seconds.values())
+    profile = profile_run(config, rrd_path=str(tmp_path / "run.rrd"))
+    assert profile.result.to_json_dict() == run_config(config)[0].to_json_dict()
+    assert profile.steps == 40
+    seconds = profile.stage_wall_s
+    assert sum(seconds.values()) == pytest.approx(profile.wall_s, rel=1e-6)
+    assert sum(profile.stage_cpu_s.values()) == pytest.approx(profile.cpu_s, rel=1e-6)
+    assert all(s >= 0 for s in [*seconds.values(), *profile.stage_cpu_s.values()])
     assert seconds["render and read-back"] > 0 and seconds["physics: MuJoCo"] > 0 and seconds["recording"] > 0
     assert ("detector network" in seconds) == (perception == "detector")
     assert physics.mujoco is mujoco_before  # restored
