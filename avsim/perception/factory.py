@@ -55,6 +55,20 @@ def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
     return CocoRunner(model, config.coco_input, config.coco_upscale, config.min_confidence)
 
 
+def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
+    # Imported here so runs without it never import the reader (nor need its fetched files).
+    import torch
+
+    from avsim.perception.yolo.bf16 import Bf16Yolo
+    from avsim.perception.yolo.model import load_yolo
+    from avsim.perception.yolo.runner import YoloRunner
+
+    torch.set_num_threads(config.threads)
+    model = load_yolo(config.yolo_cfg or None, config.yolo_weights or None, config.yolo_names or None)
+    return YoloRunner(Bf16Yolo(model) if config.yolo_precision == "bf16" else model, config.yolo_input,
+                      config.yolo_upscale, config.min_confidence)
+
+
 def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
     from avsim.perception.onnx.runner import OnnxRunner
 
@@ -69,6 +83,7 @@ def _ensemble_frames(config: PerceptionConfig) -> "FrameDetector":
 
 FRAME_DETECTORS.add("detector", _detector_frames)
 FRAME_DETECTORS.add("coco", _coco_frames)
+FRAME_DETECTORS.add("yolo", _yolo_frames)
 FRAME_DETECTORS.add("onnx", _onnx_frames)
 FRAME_DETECTORS.add("ensemble", _ensemble_frames)
 
@@ -105,6 +120,7 @@ def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: Sc
 
 PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
+PERCEPTIONS.add("yolo", _frame_perception)
 PERCEPTIONS.add("onnx", _frame_perception)
 PERCEPTIONS.add("ensemble", _frame_perception)
 
