@@ -45,7 +45,7 @@ class YoloModel(nn.Module):
         if classes != {len(class_names)}:
             raise DarknetFileError(f"the cfg's [yolo] layers have {sorted(classes)} classes but the names file lists "
                                    f"{len(class_names)}; give the names file that belongs to the weights")
-        self.network = network.eval()
+        self.network = network.eval().to(memory_format=torch.channels_last)  # as the inputs (`preprocess`)
         self.class_names = class_names
 
     @property

@@ -28,7 +28,7 @@ import torch
 from avsim.config import PerceptionConfig
 from avsim.perception.coco.preprocess import image_tensor
 from avsim.perception.yolo import fetch
-from avsim.perception.yolo.model import load_yolo
+from avsim.perception.yolo.model import PIXEL_SCALE, load_yolo
 from avsim.perception.yolo.preprocess import network_input
 from tests.perception.reference_renders import render_views
 
@@ -75,10 +75,10 @@ def test_reader_matches_opencv_darknet_importer_on_21_renders(side_python, tmp_p
         else:
             x, _ = network_input(image_tensor(frame), "resize", model.input_size_px, 32)
         path = tmp_path / f"{i:02d}.npy"
-        np.save(path, (x / 255.0).numpy().astype(np.float32))
+        np.save(path, np.ascontiguousarray((x * PIXEL_SCALE).numpy(), dtype=np.float32))  # what the network sees
         inputs.append(str(path))
-        with torch.inference_mode():
-            decoded = model.decoded(torch.from_numpy(np.load(path)) * 255.0)
+        with torch.inference_mode():  # the input as deployed (channels-last), scaled as the model scales it
+            decoded = model.decoded(x)
         ours.append((x.shape[-1], x.shape[-2], decoded))
     job, out = tmp_path / "job.json", tmp_path / "outputs.json"
     job.write_text(json.dumps({"cfg": str(cfg_path), "weights": str(weights_path), "inputs": inputs, "out": str(out)}))
