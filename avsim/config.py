@@ -26,7 +26,9 @@ COCO_INPUTS = ("resize", "crop", "upscale")
 COCO_PRECISIONS = ("fp32", "bf16")
 # Values of PerceptionConfig.purify (perception/purify.py) and .ensemble_fusion (perception/ensemble.py).
 PURIFIERS = ("none", "jpeg", "median")
-ENSEMBLE_FUSIONS = ("or", "and")
+ENSEMBLE_FUSIONS = ("or", "and", "k_of_n")
+# Values of PerceptionConfig.ensemble_members (the FRAME_DETECTORS networks an ensemble may hold).
+ENSEMBLE_NETWORKS = ("detector", "coco", "yolo")
 # scenario.sign = NO_SIGN: no stop sign at the junction (a speed-limit sign stands on its post).
 NO_SIGN = "none"
 # Values of ScenarioConfig.distractors (world/distractors.py) and .map_error (world/hd_map.py).
@@ -342,6 +344,10 @@ class PerceptionConfig:
     # "or" reports every detection of either network; "and" reports a stop sign only where both
     # networks report one (boxes whose centres lie inside each other), at the lower confidence.
     ensemble_fusion: str = "or"
+    # `ensemble`: its member networks, the first giving fused boxes (any of ENSEMBLE_NETWORKS, each
+    # once, at least two), and for "k_of_n" fusion how many must report a stop sign on one object.
+    ensemble_members: tuple[str, ...] = ("detector", "coco")
+    ensemble_k: int = 2
 
     def __post_init__(self) -> None:
         for key in ("front_roi_px", "side_roi_px"):
@@ -379,6 +385,13 @@ class PerceptionConfig:
                  f"perception.purify_median_kernel_px must be 3, 5, 7 or 9 (an odd square kernel), got {self.purify_median_kernel_px}")
         _require(self.ensemble_fusion in ENSEMBLE_FUSIONS,
                  f"perception.ensemble_fusion must be one of {', '.join(ENSEMBLE_FUSIONS)}, got {self.ensemble_fusion!r}")
+        _require(len(self.ensemble_members) >= 2 and len(set(self.ensemble_members)) == len(self.ensemble_members)
+                 and set(self.ensemble_members) <= set(ENSEMBLE_NETWORKS),
+                 f"perception.ensemble_members must be two or more of {', '.join(ENSEMBLE_NETWORKS)}, each once, got "
+                 f"{list(self.ensemble_members)}")
+        _require(1 <= self.ensemble_k <= len(self.ensemble_members),
+                 f"perception.ensemble_k must be in [1, {len(self.ensemble_members)}] (the number of ensemble_members), "
+                 f"got {self.ensemble_k}")
         _require(self.kind != "onnx" or (self.onnx_path and self.onnx_classes),
                  "perception kind 'onnx' needs perception.onnx_path (the .onnx file) and perception.onnx_classes "
                  "(its class names, index = class id, e.g. ['stop_sign', 'yield'])")

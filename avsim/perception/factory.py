@@ -76,9 +76,10 @@ def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
 
 
 def _ensemble_frames(config: PerceptionConfig) -> "FrameDetector":
-    from avsim.perception.ensemble import ENSEMBLE_MEMBERS, EnsembleDetector
+    from avsim.perception.ensemble import EnsembleDetector
 
-    return EnsembleDetector({name: FRAME_DETECTORS.get(name)(config) for name in ENSEMBLE_MEMBERS}, config.ensemble_fusion)
+    return EnsembleDetector({name: FRAME_DETECTORS.get(name)(config) for name in config.ensemble_members},
+                            config.ensemble_fusion, config.ensemble_k)
 
 
 FRAME_DETECTORS.add("detector", _detector_frames)
@@ -104,9 +105,7 @@ def build_frame_detector(config: PerceptionConfig) -> "FrameDetector":
 def networks_per_frame(config: PerceptionConfig) -> int:
     """How many networks the perception runs on each camera frame: 0 for the oracle (it renders
     segmentation instead), the members of an ensemble, else 1."""
-    from avsim.perception.ensemble import ENSEMBLE_MEMBERS
-
-    return {"oracle": 0, "ensemble": len(ENSEMBLE_MEMBERS)}.get(config.kind, 1)
+    return {"oracle": 0, "ensemble": len(config.ensemble_members)}.get(config.kind, 1)
 
 
 def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int) -> Perception:

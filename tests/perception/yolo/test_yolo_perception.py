@@ -163,3 +163,13 @@ def test_a_closed_loop_step_is_deterministic_with_noise():
         finally:
             loop.close()
     assert results[0] == results[1] and results[0]["front"]
+
+
+def test_a_three_network_ensemble_with_two_votes_fuses_yolo_with_the_others():
+    frame, truth = _frame_and_truth(12.0)
+    config = PerceptionConfig(kind="ensemble", ensemble_members=("detector", "coco", "yolo"), ensemble_fusion="k_of_n",
+                              ensemble_k=2)
+    found = build_frame_detector(config).detect(frame, "front", region_px=config.front_roi_px)
+    stops = [d for d in found if d.class_name == "stop_sign"]
+    assert stops and stops[0].confidence >= THRESHOLD and _centred_on(stops[0].box_xyxy_px, truth[0].box_xyxy_px)
+    assert stops[0].source.count("+") >= 1 and "yolo" in {m for d in stops for m in d.source.split("+")}
