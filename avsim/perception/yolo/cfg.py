@@ -38,37 +38,34 @@ class Section:
             raise DarknetFileError(f"{self._where(key)} is required but missing; add it to the cfg")
         return default
 
-    def int(self, key: str, default: int | None = None) -> int:
+    def _number(self, key: str, default: object, convert: type, what: str):
         raw = self.text(key, None if default is None else str(default))
         try:
-            return int(raw)
+            return convert(raw)
         except ValueError:
-            raise DarknetFileError(f"{self._where(key)}: {raw!r} is not an integer; fix the cfg") from None
+            raise DarknetFileError(f"{self._where(key)}: {raw!r} is not {what}; fix the cfg") from None
+
+    def int(self, key: str, default: int | None = None) -> int:
+        return self._number(key, default, int, "an integer")
 
     def float(self, key: str, default: float | None = None) -> float:
-        raw = self.text(key, None if default is None else repr(default))
+        return self._number(key, default, float, "a number")
+
+    def _numbers(self, key: str, convert: type, what: str) -> tuple:
+        raw = self.text(key)
         try:
-            return float(raw)
+            return tuple(convert(v) for v in raw.split(",") if v.strip())
         except ValueError:
-            raise DarknetFileError(f"{self._where(key)}: {raw!r} is not a number; fix the cfg") from None
+            raise DarknetFileError(f"{self._where(key)}: {raw!r} is not a comma-separated list of {what}; "
+                                   "fix the cfg") from None
 
     def ints(self, key: str, default: tuple[int, ...] | None = None) -> tuple[int, ...]:
         if key not in self.options and default is not None:
             return default
-        raw = self.text(key)
-        try:
-            return tuple(int(v) for v in raw.split(",") if v.strip())
-        except ValueError:
-            raise DarknetFileError(f"{self._where(key)}: {raw!r} is not a comma-separated list of integers; "
-                                   "fix the cfg") from None
+        return self._numbers(key, int, "integers")
 
     def floats(self, key: str) -> tuple[float, ...]:
-        raw = self.text(key)
-        try:
-            return tuple(float(v) for v in raw.split(",") if v.strip())
-        except ValueError:
-            raise DarknetFileError(f"{self._where(key)}: {raw!r} is not a comma-separated list of numbers; "
-                                   "fix the cfg") from None
+        return self._numbers(key, float, "numbers")
 
     def fail(self, message: str) -> DarknetFileError:
         """An error about this section, naming the file and line."""

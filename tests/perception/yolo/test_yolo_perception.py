@@ -10,6 +10,7 @@ import pytest
 from avsim import cli
 from avsim.config import PerceptionConfig, SimConfig, with_overrides
 from avsim.loop import ClosedLoop
+from avsim.perception.ap import box_iou
 from avsim.perception.factory import build_frame_detector, build_perception
 from avsim.perception.yolo import fetch
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
@@ -19,10 +20,7 @@ THRESHOLD = SimConfig().policy.conf_threshold
 
 
 def _iou(a, b) -> float:
-    ix = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    iy = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
+    return float(box_iou(np.asarray([a], float), np.asarray([b], float))[0, 0])
 
 
 def _centred_on(box, truth) -> bool:
