@@ -89,6 +89,22 @@ def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str, precision: str
     return _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
 
 
+def _yolo_rows(config: SimConfig, frames: int) -> None:
+    """YOLOv3-tiny (--perception yolo) per front-camera frame at perception.threads, at each input and
+    precision, as deployed: input, network, decoding, mapping and NMS (rendering excluded)."""
+    from avsim.perception.factory import build_frame_detector
+
+    default = (config.perception.yolo_input, config.perception.yolo_precision)
+    for yolo_input in COCO_INPUTS:
+        for yolo_precision in COCO_PRECISIONS:
+            detector = build_frame_detector(with_overrides(config.perception, {"kind": "yolo", "yolo_input": yolo_input,
+                                                                                "yolo_precision": yolo_precision}))
+            median_ms, p90_ms = _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
+            label = f"{yolo_input} {yolo_precision}" + (" (default)" if (yolo_input, yolo_precision) == default else "")
+            print(f"  yolo, {label:24s} {config.perception.threads} thread  {median_ms:6.1f} ms median"
+                  f"    (90th percentile {p90_ms:.1f} ms)")
+
+
 def _ms_per_frame(detector, images: list, frames: int, region_px: tuple[int, int, int, int] | None) -> tuple[float, float]:
     """Median and 90th percentile [ms] of `detector.detect` over `frames` calls cycling through `images`."""
     import numpy as np
@@ -179,6 +195,8 @@ def run_benchmarks(quick: bool = False) -> None:
         print(f"  coco, {coco_input} {coco_precision}{default:10s} {base.perception.threads} thread  {median_ms:6.1f} ms median"
               f"    (90th percentile {p90_ms:.1f} ms; target <= 15)")
     _closed_loop_rows(base, "coco", ("town07",) if quick else ("town07", "town10"), target)
+    _yolo_rows(base, 20 if quick else 100)
+    _closed_loop_rows(base, "yolo", ("town07",), target)
     # The defences' own cost (the leaderboard's cost column): purification per frame, and the ensemble
     # perception (the own detector and the COCO CenterNet on every frame) in the loop.
     for purify in ("jpeg", "median"):

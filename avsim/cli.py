@@ -241,6 +241,8 @@ Images of any size:
             @vladmandic/human does (aspect not kept); crop runs the network on the image at
             its own resolution (padded to a multiple of 32; slow and memory-hungry for
             large photos); upscale enlarges it by perception.coco_upscale first;
+  yolo      by perception.yolo_input, as coco, but resize squeezes it to the cfg's 416x416
+            (YOLOv3-tiny; perception.yolo_cfg/yolo_weights/yolo_names for your own files);
   onnx      letterboxed into the model's own input size (640x640 if it is dynamic);
   ensemble  detector and coco on the same image, each detection with its "source".
 perception.purify (jpeg, median) cleans each image before the network sees it.
@@ -309,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, study_stack, temporal_vote, "
                                       "map_prior, autopilot")
     run.add_argument("--perception", help="perception: detector (trained network on RGB), coco (a COCO-trained CenterNet), "
-                                          "ensemble (both on each frame), onnx (your YOLO-layout ONNX detector) or oracle "
+                                          "yolo (YOLOv3-tiny, COCO), ensemble (both on each frame), onnx (your YOLO-layout ONNX detector) or oracle "
                                           "(ground-truth boxes)")
     add_output_argument(run, "--json", kind=FILE, help="write the result record to this JSON file")
     add_output_argument(run, "--rrd", kind=FILE,
@@ -382,7 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
     detect = sub.add_parser("detect", help="run a perception on image files; one JSON line of detections per image",
                             description=DETECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     detect.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
-    detect.add_argument("--perception", help="detector (default), coco, ensemble or onnx")
+    detect.add_argument("--perception", help="detector (default), coco, yolo, ensemble or onnx")
     detect.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override any config key, e.g. --set perception.coco_input=resize (repeatable)")
     detect.set_defaults(func=_cmd_detect)

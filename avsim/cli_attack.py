@@ -72,9 +72,9 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     for sign in signs:
         resolve_sign_texture(sign)  # fail on a bad name before rendering anything
     detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
-    unknown = [d for d in detectors if d not in ("detector", "coco")]
+    unknown = [d for d in detectors if d not in ("detector", "coco", "yolo")]
     if unknown or not detectors:
-        raise ConfigError(f"--detectors takes detector and/or coco, comma-separated; got '{args.detectors}'")
+        raise ConfigError(f"--detectors takes detector, coco and/or yolo, comma-separated; got '{args.detectors}'")
     if args.drives < 0:
         raise ConfigError(f"--drives must be >= 0, got {args.drives}")
     placements = tuple(p.strip() for p in args.placements.split(","))
@@ -125,7 +125,8 @@ def add_attack_commands(sub) -> None:
                      help="regenerate the texture a record describes (e.g. textures/driveby_detector.json): the same "
                           "method, hyperparameters, seed, detector, view bank and budget")
     gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
-                                        "default), coco (the COCO CenterNet port) or ensemble (both at once)")
+                                        "default), coco (the COCO CenterNet port), yolo (YOLOv3-tiny), ensemble (detector "
+                                        "and coco at once) or ensemble_all (all three at once)")
     gen.add_argument("--seed", type=int)
     gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
     gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
@@ -153,7 +154,8 @@ def add_attack_commands(sub) -> None:
     ev.add_argument("--placements", default="near,standard,far",
                     help="placements of the fixed-distance tables (under the first of --detectors)")
     ev.add_argument("--detectors", default="detector",
-                    help="comma-separated perceptions the drive-bys are measured under: detector, coco (default detector)")
+                    help="comma-separated perceptions the drive-bys are measured under: detector, coco, yolo "
+                         "(default detector)")
     ev.add_argument("--drives", type=int, default=6,
                     help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
                          "0 skips them)")

@@ -28,7 +28,9 @@ COCO_PRECISIONS = ("fp32", "bf16")
 DETECTOR_PRECISIONS = ("fp32", "bf16")
 # Values of PerceptionConfig.purify (perception/purify.py) and .ensemble_fusion (perception/ensemble.py).
 PURIFIERS = ("none", "jpeg", "median")
-ENSEMBLE_FUSIONS = ("or", "and")
+ENSEMBLE_FUSIONS = ("or", "and", "k_of_n")
+# Values of PerceptionConfig.ensemble_members (the FRAME_DETECTORS networks an ensemble may hold).
+ENSEMBLE_NETWORKS = ("detector", "coco", "yolo")
 # scenario.sign = NO_SIGN: no stop sign at the junction (a speed-limit sign stands on its post).
 NO_SIGN = "none"
 # Values of ScenarioConfig.distractors (world/distractors.py) and .map_error (world/hd_map.py).
@@ -259,6 +261,7 @@ class PerceptionConfig:
     `detector` runs the trained sign detector on each rendered RGB frame; `oracle`
     reads ground-truth boxes from segmentation (an explicitly named shortcut); `coco` runs
     the COCO-trained CenterNet of @vladmandic/human (ported to PyTorch, fetched at install);
+    `yolo` runs YOLOv3-tiny (COCO, Darknet's files read into PyTorch, fetched at install);
     `onnx` runs a user's YOLOv8/YOLO11-layout ONNX detector with onnxruntime; `none` sees
     nothing (for the autopilot, or a Gymnasium agent without a perception).
     """
@@ -326,6 +329,19 @@ class PerceptionConfig:
     # scores) and its class names, index = class id; "stop_sign" is the class the policies act on.
     onnx_path: str = ""
     onnx_classes: tuple[str, ...] = ()
+    # `yolo`: YOLOv3-tiny (COCO-80, Darknet's files, perception/yolo/), or a user's own Darknet
+    # YOLOv3/v4-tiny style files: yolo_cfg + yolo_weights (both or neither; "" = the fetched
+    # YOLOv3-tiny) and yolo_names (its class names, one a line; "" = the fetched coco.names).
+    # yolo_input as coco_input, but "resize" squeezes the whole frame to the cfg's [net] size
+    # (416x416), as OpenCV's blobFromImage feeds Darknet models; "upscale" enlarges the region of
+    # interest by yolo_upscale. "bf16" runs a bfloat16 copy (perception/yolo/bf16.py); agreement
+    # with fp32, measured, is in docs/yolo.md.
+    yolo_cfg: str = ""
+    yolo_weights: str = ""
+    yolo_names: str = ""
+    yolo_input: str = "upscale"
+    yolo_upscale: float = 2.0
+    yolo_precision: str = "fp32"
     # Input purification before the network (a defence, perception/purify.py): "jpeg" re-compresses
     # each frame at purify_jpeg_quality, "median" median-blurs it with a purify_median_kernel_px
     # square kernel; "none" leaves it as rendered. Any pixel perception; not the oracle.
@@ -336,6 +352,10 @@ class PerceptionConfig:
     # "or" reports every detection of either network; "and" reports a stop sign only where both
     # networks report one (boxes whose centres lie inside each other), at the lower confidence.
     ensemble_fusion: str = "or"
+    # `ensemble`: its member networks, the first giving fused boxes (any of ENSEMBLE_NETWORKS, each
+    # once, at least two), and for "k_of_n" fusion how many must report a stop sign on one object.
+    ensemble_members: tuple[str, ...] = ("detector", "coco")
+    ensemble_k: int = 2
 
     def __post_init__(self) -> None:
         for key in ("front_roi_px", "side_roi_px"):
@@ -355,18 +375,33 @@ class PerceptionConfig:
         _require(1 <= self.coco_upscale <= 4, f"perception.coco_upscale must be in [1, 4], got {self.coco_upscale}")
         _require(self.coco_precision in COCO_PRECISIONS,
                  f"perception.coco_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.coco_precision!r}")
+        _require(self.yolo_input in COCO_INPUTS,
+                 f"perception.yolo_input must be one of {', '.join(COCO_INPUTS)}, got {self.yolo_input!r}")
+        _require(1 <= self.yolo_upscale <= 4, f"perception.yolo_upscale must be in [1, 4], got {self.yolo_upscale}")
+        _require(self.yolo_precision in COCO_PRECISIONS,
+                 f"perception.yolo_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.yolo_precision!r}")
+        _require(bool(self.yolo_cfg) == bool(self.yolo_weights),
+                 "perception.yolo_cfg and perception.yolo_weights go together: give both (your own Darknet files) or "
+                 "neither (the fetched YOLOv3-tiny)")
         _require(all(name.strip() for name in self.onnx_classes),
                  f"perception.onnx_classes must be non-empty names, got {list(self.onnx_classes)}")
         _require(self.purify in PURIFIERS, f"perception.purify must be one of {', '.join(PURIFIERS)}, got {self.purify!r}")
         _require(self.kind != "oracle" or self.purify == "none",
                  "perception.purify works on pixels, and the oracle reads ground truth from the scene; choose a pixel "
-                 "perception (detector, coco, ensemble, onnx) or perception.purify = none")
+                 "perception (detector, coco, yolo, ensemble, onnx) or perception.purify = none")
         _require(1 <= self.purify_jpeg_quality <= 100,
                  f"perception.purify_jpeg_quality must be in [1, 100], got {self.purify_jpeg_quality}")
         _require(self.purify_median_kernel_px in (3, 5, 7, 9),
                  f"perception.purify_median_kernel_px must be 3, 5, 7 or 9 (an odd square kernel), got {self.purify_median_kernel_px}")
         _require(self.ensemble_fusion in ENSEMBLE_FUSIONS,
                  f"perception.ensemble_fusion must be one of {', '.join(ENSEMBLE_FUSIONS)}, got {self.ensemble_fusion!r}")
+        _require(len(self.ensemble_members) >= 2 and len(set(self.ensemble_members)) == len(self.ensemble_members)
+                 and set(self.ensemble_members) <= set(ENSEMBLE_NETWORKS),
+                 f"perception.ensemble_members must be two or more of {', '.join(ENSEMBLE_NETWORKS)}, each once, got "
+                 f"{list(self.ensemble_members)}")
+        _require(1 <= self.ensemble_k <= len(self.ensemble_members),
+                 f"perception.ensemble_k must be in [1, {len(self.ensemble_members)}] (the number of ensemble_members), "
+                 f"got {self.ensemble_k}")
         _require(self.kind != "onnx" or (self.onnx_path and self.onnx_classes),
                  "perception kind 'onnx' needs perception.onnx_path (the .onnx file) and perception.onnx_classes "
                  "(its class names, index = class id, e.g. ['stop_sign', 'yield'])")

@@ -86,7 +86,7 @@ def _place(loop: ClosedLoop, bumper_to_sign_m: float) -> None:
 def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshold: float,
                      base: SimConfig | None = None, detector: str = "detector") -> TextureReport:
     """Measure one texture (a `--sign` value) in `town` at each placement, with the perception
-    `detector` (detector or coco).
+    `detector` (detector, coco or yolo).
 
     Confidences are the detector's at any box size; the detection rate and the first
     detection count a frame as the car's pipeline does: confidence >= `threshold` and a box

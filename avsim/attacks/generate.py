@@ -347,15 +347,18 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
 def check_weights(recipe: Recipe, weights_path: str = "") -> None:
     """A one-line ConfigError when the weights here are not the ones the texture was made against."""
     from avsim.perception.coco import fetch
+    from avsim.perception.yolo import fetch as yolo_fetch
 
     expected = {name: digest for name, digest in recipe.weight_hashes.items() if digest}
     actual = {}
-    if recipe.detector in ("detector", "ensemble"):
+    if recipe.detector in ("detector", "ensemble", "ensemble_all"):
         path = resolve_weights_path(weights_path)
         actual[path.name] = sha256_file(path)
-    if recipe.detector in ("coco", "ensemble"):
+    if recipe.detector in ("coco", "ensemble", "ensemble_all"):
         json_path, bin_path = fetch.model_paths()
         actual[json_path.name], actual[bin_path.name] = sha256_file(json_path), sha256_file(bin_path)
+    if recipe.detector in ("yolo", "ensemble_all"):
+        actual |= {path.name: sha256_file(path) for path in yolo_fetch.model_paths()}
     different = sorted(name for name, digest in expected.items() if actual.get(name, digest) != digest)
     if different:
         raise ConfigError(f"the weights differ from those the texture was made against ({', '.join(different)}): "

@@ -9,8 +9,14 @@ differentiable in the pixels:
   = upscale feeds it in the loop: the crop enlarged `upscale` times with TensorFlow's
   bilinear resize, values 0-255. Its stop-sign heatmap (after the sigmoid, before peak
   extraction) is the score; its top and bottom edge distances give the box height;
-- `ensemble`: both; a view's score is a soft maximum of the two, so a step works on
-  whichever detector still sees the sign, and the box height is their geometric mean.
+- `yolo`: YOLOv3-tiny (`avsim.perception.yolo`), fed as `perception.yolo_input` = upscale
+  feeds it in the loop: the crop enlarged `upscale` times (bilinear, half-pixel centres),
+  values 0-255. The score is objectness x stop-sign probability of the rows whose predicted
+  box centre lies near the sign, before NMS; their boxes give the height;
+- `ensemble`: avsim's detector and coco; a view's score is a soft maximum of the two, so a
+  step works on whichever detector still sees the sign, and the box height is their
+  geometric mean;
+- `ensemble_all`: the same over all three networks (detector, coco, yolo).
 
 Any of them can sit behind the perception's input purification (`perception.purify`, a
 defence): `PurifiedTarget` runs the deployed JPEG codec or median filter on the views in the
@@ -36,8 +42,10 @@ from avsim.errors import ConfigError
 from avsim.perception.coco.labels import STOP_SIGN_CLASS_ID
 from avsim.perception.coco.ops import upsample_bilinear_tf
 from avsim.perception.detector.model import SignDetector
+from avsim.perception.yolo.preprocess import resize_bilinear
+from avsim.perception.yolo.runner import avsim_class_name
 
-TARGET_NAMES = ("detector", "coco", "ensemble")
+TARGET_NAMES = ("detector", "coco", "yolo", "ensemble", "ensemble_all")
 # A CenterNet cell predicts the object whose centre it holds; cells this far outside the sign's
 # box [crop px] are left to the attack too, as for the own detector's cells.
 NEAR_MARGIN_PX = 8.0
@@ -80,6 +88,19 @@ class DetectorTarget:
         return {self.weights_path.name: sha256_file(self.weights_path)} if self.weights_path else {}
 
 
+def square_crops(images: torch.Tensor, boxes: torch.Tensor, crop_px: int | None) -> tuple[torch.Tensor, torch.Tensor]:
+    """(B, 3, c, c) squares of side `crop_px` around each view's sign (clipped to the view) and the
+    boxes in them; the views themselves when `crop_px` is None or not smaller than them."""
+    size = images.shape[-1]
+    if crop_px is None or crop_px >= size:
+        return images, boxes
+    centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+    origins = (centres - crop_px / 2).round().clamp(0, size - crop_px).long()
+    crops = torch.stack([image[:, int(y):int(y) + crop_px, int(x):int(x) + crop_px]
+                         for image, (x, y) in zip(images, origins.tolist())])
+    return crops, boxes - origins.repeat(1, 2).to(boxes.dtype)
+
+
 class CocoTarget:
     """The COCO CenterNet, on each view's crop upscaled by `upscale` (2 = the loop's default).
 
@@ -100,19 +121,8 @@ class CocoTarget:
         self.crop_px = crop_px
         self.cache_dir = cache_dir
 
-    def _crops(self, images: torch.Tensor, boxes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(B, 3, c, c) squares around each sign and the boxes in them."""
-        size = images.shape[-1]
-        if self.crop_px is None or self.crop_px >= size:
-            return images, boxes
-        centres = (boxes[:, :2] + boxes[:, 2:]) / 2
-        origins = (centres - self.crop_px / 2).round().clamp(0, size - self.crop_px).long()
-        crops = torch.stack([image[:, int(y):int(y) + self.crop_px, int(x):int(x) + self.crop_px]
-                             for image, (x, y) in zip(images, origins.tolist())])
-        return crops, boxes - origins.repeat(1, 2).to(boxes.dtype)
-
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
-        crops, boxes = self._crops(images, sign_boxes_px)
+        crops, boxes = square_crops(images, sign_boxes_px, self.crop_px)
         x = upsample_bilinear_tf(crops * 255.0, (self.upscale, self.upscale)) if self.upscale > 1 else crops * 255.0
         heatmap, wh = self.model.maps(x.contiguous(memory_format=torch.channels_last))
         stride = x.shape[-1] / heatmap.shape[-1]
@@ -129,6 +139,44 @@ class CocoTarget:
 
     def weight_hashes(self) -> dict[str, str]:
         from avsim.perception.coco import fetch
+
+        return {name: digest for name, digest in fetch.MODEL_FILES.values()}
+
+
+class YoloTarget:
+    """YOLOv3-tiny, on each view's crop (as `CocoTarget`'s) upscaled by `upscale` (2 = the loop's default)."""
+
+    name = "yolo"
+
+    def __init__(self, model, upscale: int = 2, crop_px: int | None = 128) -> None:
+        if crop_px is not None and crop_px * upscale % model.size_multiple_px:
+            raise ValueError(f"YOLO target crop x upscale must be a multiple of {model.size_multiple_px} px, got "
+                             f"{crop_px} x {upscale}")
+        self.model = _frozen(model)
+        self.upscale = upscale
+        self.crop_px = crop_px
+        self.stop_class = [avsim_class_name(name) for name in model.class_names].index("stop_sign")
+
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        crops, boxes = square_crops(images, sign_boxes_px, self.crop_px)
+        x = crops * 255.0
+        if self.upscale > 1:
+            x = resize_bilinear(x, (x.shape[-2] * self.upscale, x.shape[-1] * self.upscale))
+        decoded = self.model.decoded(x.contiguous(memory_format=torch.channels_last))
+        rows_px = decoded.boxes_xyxy / self.upscale  # crop px
+        # A row predicts the object its box is centred on: rows centred near the sign are the sign's.
+        centres = ((rows_px[..., :2] + rows_px[..., 2:]) / 2).detach()
+        low, high = boxes[:, None, :2] - NEAR_MARGIN_PX, boxes[:, None, 2:] + NEAR_MARGIN_PX
+        near = ((centres >= low) & (centres <= high)).all(dim=-1)  # (B, N)
+        objectness, class_prob = decoded.objectness, decoded.class_prob[..., self.stop_class]
+        score = objectness * class_prob
+        best = masked_max(score, near, 0.0)
+        class_logit = masked_max(torch.logit(class_prob.clamp(1e-6, 1 - 1e-6)), near, -14.0)
+        return StopEvidence(best, masked_max(objectness, near, 0.0), masked_max(class_prob, near, 0.0), class_logit,
+                            reported_height_px(rows_px[..., 3] - rows_px[..., 1], score, near))
+
+    def weight_hashes(self) -> dict[str, str]:
+        from avsim.perception.yolo import fetch
 
         return {name: digest for name, digest in fetch.MODEL_FILES.values()}
 
@@ -202,9 +250,18 @@ def build_target(name: str, weights_path: str = "") -> Target:
 
         return CocoTarget(load_centernet())
 
+    def yolo() -> YoloTarget:
+        from avsim.perception.yolo.model import load_yolo
+
+        return YoloTarget(load_yolo())
+
     if name == "detector":
         return own()
     if name == "coco":
         return coco()
-    return EnsembleTarget([own(), coco()])
+    if name == "yolo":
+        return yolo()
+    if name == "ensemble":
+        return EnsembleTarget([own(), coco()])
+    return EnsembleTarget([own(), coco(), yolo()])
 

@@ -1,6 +1,7 @@
-"""`ensemble` perception: avsim's own detector and the COCO CenterNet on the same frame (a defence).
+"""`ensemble` perception: several networks on the same frame (a defence).
 
-Two networks trained apart, on different data (avsim's renders; COCO photographs), rarely share
+The members are `perception.ensemble_members`, any of avsim's own detector, the COCO
+CenterNet and YOLOv3-tiny (default: the first two). Networks trained apart, on different data (avsim's renders; COCO photographs), rarely share
 an adversarial blind spot: a texture optimised against one transfers poorly to the other (the
 study's five textures did not transfer to the COCO network at all). Detector ensembles as a
 defence: Liu et al. 2018 ("Towards robust neural networks via random self-ensemble") and, for
@@ -20,6 +21,10 @@ it; each detection is tagged with its network (`Detection.source`). Fusion
   the confidences and source "detector+coco". Fewer false alarms, and the recall of the
   weaker network. The other classes, which no policy acts on, are reported as each network
   reports them (COCO has no yield or speed-limit class).
+- "k_of_n": a stop sign is reported where at least `perception.ensemble_k` members report one
+  on the same object, fused as for "and" (the box of the earliest member in the group, the
+  lowest confidence in it, the members joined by "+"). k = 1 is one detection per object
+  instead of OR's one per network; k = n is "and".
 """
 
 from __future__ import annotations
@@ -33,8 +38,6 @@ from avsim.config import ENSEMBLE_FUSIONS
 from avsim.perception.base import Detection
 from avsim.perception.frame import FrameDetector, Region
 
-# The member networks, by their FRAME_DETECTORS names, the first giving fused boxes.
-ENSEMBLE_MEMBERS = ("detector", "coco")
 STOP_CLASS = "stop_sign"
 
 
@@ -47,43 +50,61 @@ def centres_inside_each_other(a: Detection, b: Detection) -> bool:
     return centre_in(a.box_xyxy_px, b.box_xyxy_px) and centre_in(b.box_xyxy_px, a.box_xyxy_px)
 
 
-def fuse_and(per_source: Mapping[str, list[Detection]]) -> list[Detection]:
-    """AND fusion (module docstring) of tagged detections, member by member, most confident first."""
+def fuse_votes(per_source: Mapping[str, list[Detection]], votes: int) -> list[Detection]:
+    """k-of-n fusion (module docstring) of tagged detections, most confident first.
+
+    Each stop sign of each member, in member order, anchors a group: the most confident stop
+    sign of every later member on the same object (centres inside each other). A group of at
+    least `votes` members is reported once; its detections anchor nothing more.
+    """
     names = list(per_source)
-    first, others = names[0], names[1:]
+    used: set[tuple[str, int]] = set()
     fused = []
-    for det in per_source[first]:
-        if det.class_name != STOP_CLASS:
-            continue
-        partners = []
-        for name in others:
-            matches = [d for d in per_source[name] if d.class_name == STOP_CLASS and centres_inside_each_other(det, d)]
-            if not matches:
-                break
-            partners.append(max(matches, key=lambda d: d.confidence))
-        else:
+    for position, name in enumerate(names):
+        for index, det in enumerate(per_source[name]):
+            if det.class_name != STOP_CLASS or (name, index) in used:
+                continue
+            group = [(name, index, det)]
+            for other in names[position + 1:]:
+                matches = [(j, d) for j, d in enumerate(per_source[other])
+                           if d.class_name == STOP_CLASS and centres_inside_each_other(det, d)]
+                if matches:
+                    j, best = max(matches, key=lambda item: item[1].confidence)
+                    group.append((other, j, best))
+            if len(group) < votes:
+                continue
+            used |= {(member, j) for member, j, _ in group}
             fused.append(dataclasses.replace(
-                det, confidence=min(det.confidence, *(p.confidence for p in partners)),
-                truncated=det.truncated or any(p.truncated for p in partners), source="+".join(names)))
+                det, confidence=min(d.confidence for _, _, d in group),
+                truncated=any(d.truncated for _, _, d in group), source="+".join(member for member, _, _ in group)))
     rest = [d for name in names for d in per_source[name] if d.class_name != STOP_CLASS]
     return sorted(fused + rest, key=lambda d: -d.confidence)
+
+
+def fuse_and(per_source: Mapping[str, list[Detection]]) -> list[Detection]:
+    """AND fusion (module docstring): a stop sign every member reports."""
+    return fuse_votes(per_source, len(per_source))
 
 
 class EnsembleDetector:
     """A frame detector that runs every member on the frame and fuses their detections (a `FrameDetector`).
 
-    members: name -> frame detector, in ENSEMBLE_MEMBERS order; fusion: "or" or "and".
+    members: name -> frame detector, the first giving fused boxes; fusion: "or", "and" or
+    "k_of_n" (with `votes`, 1 <= votes <= members).
     """
 
-    def __init__(self, members: Mapping[str, FrameDetector], fusion: str) -> None:
+    def __init__(self, members: Mapping[str, FrameDetector], fusion: str, votes: int | None = None) -> None:
         if fusion not in ENSEMBLE_FUSIONS:
             raise ValueError(f"unknown ensemble fusion {fusion!r}; choose one of: {', '.join(ENSEMBLE_FUSIONS)}")
         self.members = dict(members)
         self.fusion = fusion
+        self.votes = {"and": len(self.members), "k_of_n": votes}.get(fusion)
+        if fusion == "k_of_n" and not (votes and 1 <= votes <= len(self.members)):
+            raise ValueError(f"k_of_n fusion needs 1 <= votes <= {len(self.members)}, got {votes}")
 
     def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]:
         per_source = {name: [dataclasses.replace(d, source=name) for d in member.detect(image_rgb, camera, region_px=region_px)]
                       for name, member in self.members.items()}
-        if self.fusion == "and":
-            return fuse_and(per_source)
+        if self.votes is not None:
+            return fuse_votes(per_source, self.votes)
         return sorted((d for dets in per_source.values() for d in dets), key=lambda d: -d.confidence)

@@ -56,6 +56,20 @@ def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
     return CocoRunner(model, config.coco_input, config.coco_upscale, config.min_confidence)
 
 
+def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
+    # Imported here so runs without it never import the reader (nor need its fetched files).
+    import torch
+
+    from avsim.perception.yolo.bf16 import Bf16Yolo
+    from avsim.perception.yolo.model import load_yolo
+    from avsim.perception.yolo.runner import YoloRunner
+
+    torch.set_num_threads(config.threads)
+    model = load_yolo(config.yolo_cfg or None, config.yolo_weights or None, config.yolo_names or None)
+    return YoloRunner(Bf16Yolo(model) if config.yolo_precision == "bf16" else model, config.yolo_input,
+                      config.yolo_upscale, config.min_confidence)
+
+
 def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
     from avsim.perception.onnx.runner import OnnxRunner
 
@@ -63,13 +77,15 @@ def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
 
 
 def _ensemble_frames(config: PerceptionConfig) -> "FrameDetector":
-    from avsim.perception.ensemble import ENSEMBLE_MEMBERS, EnsembleDetector
+    from avsim.perception.ensemble import EnsembleDetector
 
-    return EnsembleDetector({name: FRAME_DETECTORS.get(name)(config) for name in ENSEMBLE_MEMBERS}, config.ensemble_fusion)
+    return EnsembleDetector({name: FRAME_DETECTORS.get(name)(config) for name in config.ensemble_members},
+                            config.ensemble_fusion, config.ensemble_k)
 
 
 FRAME_DETECTORS.add("detector", _detector_frames)
 FRAME_DETECTORS.add("coco", _coco_frames)
+FRAME_DETECTORS.add("yolo", _yolo_frames)
 FRAME_DETECTORS.add("onnx", _onnx_frames)
 FRAME_DETECTORS.add("ensemble", _ensemble_frames)
 
@@ -109,9 +125,7 @@ class FrameDetectorCache:
 def networks_per_frame(config: PerceptionConfig) -> int:
     """How many networks the perception runs on each camera frame: 0 for the oracle (it renders
     segmentation instead), the members of an ensemble, else 1."""
-    from avsim.perception.ensemble import ENSEMBLE_MEMBERS
-
-    return {"oracle": 0, "ensemble": len(ENSEMBLE_MEMBERS)}.get(config.kind, 1)
+    return {"oracle": 0, "ensemble": len(config.ensemble_members)}.get(config.kind, 1)
 
 
 def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int,
@@ -127,6 +141,7 @@ def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: Sc
 
 PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
+PERCEPTIONS.add("yolo", _frame_perception)
 PERCEPTIONS.add("onnx", _frame_perception)
 PERCEPTIONS.add("ensemble", _frame_perception)
 

@@ -107,3 +107,19 @@ def test_the_adaptive_attack_through_purification_beats_the_non_adaptive_one_beh
     adaptive_value = held_out_values(behind.scene, adaptive.texture, behind)
     assert adaptive_value < held_out_values(behind.scene, plain.texture, behind)
     assert adaptive_value < clean_value
+
+
+def test_the_yolo_and_three_network_targets_score_the_clean_sign_and_pass_gradients(drive_by_bank, clean_small):
+    group = drive_by_bank.groups[0]
+    views = group[len(group) // 2: len(group) // 2 + 2]  # about 30 m
+    true_height = drive_by_bank.true_height_px[torch.as_tensor(views)]
+    for name in ("yolo", "ensemble_all"):
+        scene = EotScene(drive_by_bank, build_target(name), CLOSED_LOOP_PHOTOMETRIC)
+        texture = clean_small.clone().requires_grad_(True)
+        evidence = scene.evidence_of(texture, views, torch.Generator().manual_seed(0))
+        assert torch.all(evidence.score > 0.2), (name, evidence.score)
+        # YOLOv3-tiny often boxes only the sign's legend: its box is shorter than the sign, never taller.
+        assert torch.all(evidence.box_height_px <= true_height * 1.25), (name, evidence.box_height_px, true_height)
+        assert torch.all(evidence.box_height_px >= true_height * 0.3), (name, evidence.box_height_px, true_height)
+        (evidence.score.sum() + evidence.box_height_px.sum()).backward()
+        assert texture.grad.abs().sum() > 0

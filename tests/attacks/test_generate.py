@@ -135,6 +135,26 @@ def test_the_texture_record_names_every_weight_file_of_the_ensemble():
     assert all(len(digest) == 64 for digest in hashes.values())
 
 
+def test_the_three_network_target_names_every_weight_file_and_a_regeneration_checks_them(monkeypatch):
+    from avsim.attacks import generate
+    from avsim.attacks.targets import build_target
+
+    hashes = build_target("ensemble_all").weight_hashes()
+    assert set(hashes) == {"sign_detector.pt", "centernet.json", "centernet.bin", "yolov3-tiny.cfg",
+                           "yolov3-tiny.weights", "coco.names"}
+    recipe = type("Recipe", (), {"detector": "yolo", "weight_hashes": {**hashes, "yolov3-tiny.weights": "0" * 64}})()
+    with pytest.raises(ConfigError, match="yolov3-tiny.weights"):
+        generate.check_weights(recipe)
+    recipe.weight_hashes = hashes
+    generate.check_weights(recipe)
+
+
+def test_attack_eval_takes_yolo_among_its_detectors_and_refuses_others_in_one_line(capsys):
+    assert cli.main(["attack", "eval", "--detectors", "detector,yolo,onnx", "--signs", "clean"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "--detectors takes detector, coco and/or yolo" in err[0]
+
+
 def test_an_unknown_purification_is_one_line_and_exit_2_before_anything_is_rendered(tmp_path, capsys):
     out = tmp_path / "t.png"
     assert cli.main(["attack", "generate", "--method", "driveby", "--purify", "gzip", "--out", str(out)]) == 2

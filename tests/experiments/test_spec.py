@@ -32,12 +32,16 @@ SHIPPED = {
     "sensitivity.toml": [(sign, policy) for policy in ("baseline", "adjusted") for sign in ("clean", "yang") for _ in range(6)],
     "coco_detector.toml": [("clean", policy) for _ in range(9)
                            for policy in ("baseline", "adjusted", "side_camera", "combined", "study_stack")],
+    "yolo_detector.toml": [("clean", policy) for _ in range(9)
+                           for policy in ("baseline", "adjusted", "side_camera", "combined", "study_stack")],
 }
 # file name -> the report section it declares
 REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
                "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
                "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare", "sensitivity.toml": "sensitivity",
-               "coco_detector.toml": "stop_rates"}
+               "coco_detector.toml": "stop_rates", "yolo_detector.toml": "stop_rates"}
+# file name -> the perception its runs see through (avsim's own detector where not named)
+PERCEPTION_KIND = {"coco_detector.toml": "coco", "yolo_detector.toml": "yolo"}
 EVERY_TOWN_AND_PLACEMENT = [(town, placement) for town in ("town03", "town07", "town10") for placement in ("near", "standard", "far")]
 
 
@@ -60,7 +64,7 @@ def test_shipped_file_loads_with_the_study_cells(name):
     assert [(c.config.scenario.sign, c.config.policy.name) for c in experiment.cells] == SHIPPED[name]
     for cell in experiment.cells:
         assert cell.config.scenario.speed_kmh == 85.0
-        assert cell.config.perception.kind == ("coco" if name == "coco_detector.toml" else "detector")
+        assert cell.config.perception.kind == PERCEPTION_KIND.get(name, "detector")
         assert cell.config.perception.sensor_noise_std == 2.0
     assert experiment.report == REPORT_KIND[name]
     road = {c.config.scenario.road_friction for c in experiment.cells}
@@ -68,7 +72,7 @@ def test_shipped_file_loads_with_the_study_cells(name):
     places = [(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells]
     if "defended" in name:
         assert places == DEFENDED_CELLS
-    elif name == "coco_detector.toml":
+    elif name in PERCEPTION_KIND:
         assert places == [place for place in EVERY_TOWN_AND_PLACEMENT for _ in range(5)]
     else:
         assert {(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells} == {("town07", "standard")}

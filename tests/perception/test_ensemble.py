@@ -7,7 +7,7 @@ import pytest
 from avsim.config import PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.perception.base import Detection
-from avsim.perception.ensemble import ENSEMBLE_MEMBERS, EnsembleDetector, centres_inside_each_other, fuse_and
+from avsim.perception.ensemble import EnsembleDetector, centres_inside_each_other, fuse_and, fuse_votes
 from avsim.perception.factory import networks_per_frame
 
 IMAGE = np.zeros((48, 64, 3), np.uint8)
@@ -59,10 +59,39 @@ def test_and_keeps_a_truncated_flag_from_either_network():
     assert fused[0].truncated
 
 
-def test_the_ensemble_is_the_own_detector_and_coco_and_runs_two_networks_a_frame():
-    assert ENSEMBLE_MEMBERS == ("detector", "coco")
+def test_the_ensemble_is_the_own_detector_and_coco_by_default_and_runs_one_network_a_member():
+    assert PerceptionConfig().ensemble_members == ("detector", "coco")
     assert networks_per_frame(PerceptionConfig(kind="ensemble")) == 2
+    assert networks_per_frame(PerceptionConfig(kind="ensemble", ensemble_members=("detector", "coco", "yolo"))) == 3
     assert networks_per_frame(PerceptionConfig(kind="detector")) == 1
     assert networks_per_frame(PerceptionConfig(kind="oracle")) == 0
     with pytest.raises(ConfigError, match="ensemble_fusion"):
         PerceptionConfig(kind="ensemble", ensemble_fusion="xor")
+
+
+def test_k_of_n_reports_an_object_once_when_enough_members_see_it():
+    per_source = {"detector": [box(10, 10, 30, 30, 0.9)],
+                  "coco": [box(11, 9, 31, 31, 0.6), box(50, 50, 70, 70, 0.8)],
+                  "yolo": [box(12, 11, 29, 30, 0.7), box(51, 49, 71, 69, 0.5), box(90, 0, 99, 9, 0.95)]}
+    two = fuse_votes(per_source, 2)
+    assert [(d.source, d.confidence, d.box_xyxy_px) for d in two] == [
+        ("detector+coco+yolo", 0.6, (10, 10, 30, 30)), ("coco+yolo", 0.5, (50, 50, 70, 70))]
+    assert [d.source for d in fuse_votes(per_source, 3)] == ["detector+coco+yolo"]
+    one = fuse_votes(per_source, 1)  # every object once, however many members saw it
+    assert sorted(d.source for d in one) == ["coco+yolo", "detector+coco+yolo", "yolo"]
+    assert fuse_and(per_source) == fuse_votes(per_source, 3)
+
+
+def test_k_of_n_through_the_detector_and_its_config_checks():
+    members = {"detector": Fixed(box(10, 10, 30, 30, 0.9)), "coco": Fixed(), "yolo": Fixed(box(11, 10, 31, 30, 0.7))}
+    found = EnsembleDetector(members, "k_of_n", 2).detect(IMAGE, "front")
+    assert [(d.source, d.confidence) for d in found] == [("detector+yolo", 0.7)]
+    assert EnsembleDetector(members, "and").detect(IMAGE, "front") == []
+    with pytest.raises(ValueError, match="votes"):
+        EnsembleDetector(members, "k_of_n", 4)
+    with pytest.raises(ConfigError, match="ensemble_k must be in \\[1, 2\\]"):
+        PerceptionConfig(kind="ensemble", ensemble_fusion="k_of_n", ensemble_k=3)
+    with pytest.raises(ConfigError, match="ensemble_members must be two or more"):
+        PerceptionConfig(kind="ensemble", ensemble_members=("coco", "coco"))
+    with pytest.raises(ConfigError, match="ensemble_members must be two or more"):
+        PerceptionConfig(kind="ensemble", ensemble_members=("detector", "onnx"))

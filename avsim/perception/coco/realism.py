@@ -1,11 +1,15 @@
 """Do avsim's renders look like a stop sign to a detector trained on real photographs?
 
-Runs the COCO CenterNet on a dataset written by `avsim detector make-data` (randomised
-towns, lighting, fog, camera jitter) and reports, per setting (a `perception.coco_input`
-mode at a `perception.coco_precision`):
+Runs a COCO network (`--network coco`, the CenterNet; `--network yolo`, YOLOv3-tiny) on a
+dataset written by `avsim detector make-data` (randomised towns, lighting, fog, camera
+jitter) and reports, per setting (a `perception.coco_input` / `yolo_input` mode at a
+`perception.coco_precision` / `yolo_precision`):
 - stop-sign recall against distance (5-m bins, 5-60 m) per town and camera: a labelled stop
   sign counts as found when a `stop_sign` detection at or above the threshold overlaps it with
   IoU >= 0.5; 95% Wilson intervals;
+- the same recall counting any `stop_sign` detection at or above the threshold whose box is
+  centred inside the labelled box ("centred"), for networks that box only part of the sign
+  (YOLOv3-tiny often boxes just the legend, IoU < 0.5);
 - false `stop_sign` detections per frame, at the same threshold, on frames with no labelled
   stop sign, per town.
 Each camera is searched in its deployed region of interest (`perception.front_roi_px`,
@@ -19,6 +23,7 @@ boxes are from fp32's (`compare_precisions`).
 
     python -m avsim.perception.coco.realism --data data/coco_eval --modes resize,crop,upscale --out results/coco_realism
     python -m avsim.perception.coco.realism --data data/coco_eval --modes upscale --precisions fp32,bf16
+    python -m avsim.perception.coco.realism --network yolo --data data/coco_eval --modes upscale --precisions fp32,bf16
 
 Several --data folders are scored and reported together.
 
@@ -44,22 +49,20 @@ from avsim.stats import wilson_interval
 
 BIN_EDGES_M = tuple(range(5, 65, 5))  # 5-10, ..., 55-60 m
 POOLED_RANGE_M = (10, 45)
+NETWORKS = {"coco": "COCO CenterNet", "yolo": "YOLOv3-tiny"}
 _WORKER: dict = {}
 
 
-def _init_worker(settings: tuple[tuple[str, str], ...], upscale: float, min_confidence: float) -> None:
+def _init_worker(network: str, settings: tuple[tuple[str, str], ...], upscale: float, min_confidence: float) -> None:
     import torch
 
-    from avsim.perception.coco.bf16 import Bf16CenterNet
-    from avsim.perception.coco.model import load_centernet
-    from avsim.perception.coco.runner import CocoRunner
+    from avsim.perception.factory import build_frame_detector
 
     torch.set_num_threads(1)
-    models = {"fp32": load_centernet()}
-    if any(precision == "bf16" for _, precision in settings):
-        models["bf16"] = Bf16CenterNet(models["fp32"])
-    _WORKER["runners"] = {(mode, precision): CocoRunner(models[precision], mode, upscale, min_confidence)
-                          for mode, precision in settings}
+    _WORKER["runners"] = {(mode, precision): build_frame_detector(PerceptionConfig(
+        kind=network, min_confidence=min_confidence, **{f"{network}_input": mode, f"{network}_precision": precision,
+                                                        f"{network}_upscale": upscale}))
+        for mode, precision in settings}
     defaults = PerceptionConfig()
     _WORKER["regions"] = {"front": defaults.front_roi_px, "side": defaults.side_roi_px}
 
@@ -83,19 +86,23 @@ def _score_frame(args: tuple[str, dict, float]) -> list[dict]:
         matched = np.zeros(len(stops), bool)
         matched[counted] = match_detections(boxes[counted], scores[counted], truth)
         best = max((d.confidence for d, hit in zip(stops, matched) if hit), default=0.0)
+        centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+        centred = counted & ((centres[:, None, :] >= truth[None, :, :2]) & (centres[:, None, :] <= truth[None, :, 2:])
+                             ).all(axis=-1).any(axis=1)
         rows.append({"image": record["image"], "mode": mode, "precision": precision, "setting": f"{mode} {precision}",
                      "town": record["meta"]["town"], "camera": camera,
                      "dist_m": record["meta"]["dist_m"], "has_stop_sign": bool(len(truth)),
                      "has_any_sign": bool(record["classes"]),
                      "target_is_stop_sign": record["meta"]["target_kind"] == "stop_sign",
-                     "found": bool(matched.any()), "best_matched_conf": round(float(best), 4),
+                     "found": bool(matched.any()), "found_centred": bool(centred.any()),
+                     "best_matched_conf": round(float(best), 4),
                      "false_stop_signs": int(np.sum(counted & ~matched)),
                      "stop_signs": [[float(d.confidence), *map(float, d.box_xyxy_px)] for d in stops]})
     return rows
 
 
 def score_dataset(data_dir: Path, settings: tuple[tuple[str, str], ...], threshold: float, workers: int, upscale: float,
-                  min_confidence: float, limit: int | None = None) -> list[dict]:
+                  min_confidence: float, limit: int | None = None, network: str = "coco") -> list[dict]:
     """Rows of `_score_frame` for every frame of the dataset (train, then val) and setting (mode, precision)."""
     from tqdm import tqdm
 
@@ -105,8 +112,8 @@ def score_dataset(data_dir: Path, settings: tuple[tuple[str, str], ...], thresho
     records = records[:limit] if limit else records
     jobs = [(str(data_dir), record, threshold) for record in records]
     rows: list[dict] = []
-    with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(settings, upscale, min_confidence)) as pool:
-        for frame_rows in tqdm(pool.map(_score_frame, jobs, chunksize=8), total=len(jobs), desc="COCO CenterNet", unit="img"):
+    with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(network, settings, upscale, min_confidence)) as pool:
+        for frame_rows in tqdm(pool.map(_score_frame, jobs, chunksize=8), total=len(jobs), desc=NETWORKS[network], unit="img"):
             rows.extend(frame_rows)
     return rows
 
@@ -135,14 +142,14 @@ def _settings(rows: list[dict]) -> list[str]:
     return [f"{m} {p}" for m, p in sorted({(r["mode"], r["precision"]) for r in rows}, key=order.get)]
 
 
-def report(rows: list[dict], threshold: float) -> str:
+def report(rows: list[dict], threshold: float, network: str = "coco") -> str:
     settings = _settings(rows)
     towns = sorted({r["town"] for r in rows})
     bins = [f"{lo}-{hi}" for lo, hi in zip(BIN_EDGES_M[:-1], BIN_EDGES_M[1:])]
-    lines = [f"# COCO CenterNet on avsim renders ({len({r['image'] for r in rows})} frames)", "",
+    lines = [f"# {NETWORKS[network]} on avsim renders ({len({r['image'] for r in rows})} frames)", "",
              f"Threshold {threshold}; a stop sign is found when a `stop_sign` detection at or above it overlaps the "
              "labelled box with IoU >= 0.5. Cells: recall (found/signs; 95% Wilson interval). A setting is "
-             "`perception.coco_input` and `perception.coco_precision`.", ""]
+             f"`perception.{network}_input` and `perception.{network}_precision`.", ""]
     recall_rows = _recall_rows(rows)
     for camera in ("front", "side"):
         lines += [f"## Recall by setting, {camera} camera, all towns", "",
@@ -172,17 +179,22 @@ def report(rows: list[dict], threshold: float) -> str:
             lines.append(f"| {setting} | " + " | ".join(cells) + " |")
         lines.append("")
     lines += compare_precisions(rows)
+    criteria = [("found", "IoU >= 0.5")] + ([("found_centred", "centred")] if "found_centred" in rows[0] else [])
     for setting in settings:
-        for camera in ("front", "side"):
-            lines += [f"## Recall per town, {camera} camera, `{setting}`", "",
-                      "| town | " + " | ".join(f"{b} m" for b in bins) + " |", "|---|" + "---|" * len(bins)]
-            for town in towns:
-                by_bin = defaultdict(list)
-                for r in recall_rows:
-                    if r["setting"] == setting and r["camera"] == camera and r["town"] == town:
-                        by_bin[_bin(r["dist_m"]) or ""].append(r["found"])
-                lines.append(f"| {town} | " + " | ".join(_cell(by_bin[b]) for b in bins) + " |")
-            lines.append("")
+        for key, criterion in criteria:
+            for camera in ("front", "side"):
+                lines += [f"## Recall per town, {camera} camera, `{setting}`, {criterion}", "",
+                          "| town | " + " | ".join(f"{b} m" for b in bins) + f" | {POOLED_RANGE_M[0]}-{POOLED_RANGE_M[1]} m pooled |",
+                          "|---|" + "---|" * (len(bins) + 1)]
+                for town in towns:
+                    by_bin, pooled = defaultdict(list), []
+                    for r in recall_rows:
+                        if r["setting"] == setting and r["camera"] == camera and r["town"] == town:
+                            by_bin[_bin(r["dist_m"]) or ""].append(r[key])
+                            if POOLED_RANGE_M[0] <= r["dist_m"] < POOLED_RANGE_M[1]:
+                                pooled.append(r[key])
+                    lines.append(f"| {town} | " + " | ".join(_cell(by_bin[b]) for b in bins) + f" | {_cell(pooled)} |")
+                lines.append("")
     return "\n".join(lines)
 
 
@@ -274,16 +286,22 @@ def compare_precisions(rows: list[dict]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m avsim.perception.coco.realism", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--network", choices=tuple(NETWORKS), default="coco", help="coco (default) or yolo")
     parser.add_argument("--data", nargs="+", required=True, help="datasets written by `avsim detector make-data`")
-    parser.add_argument("--modes", default=",".join(COCO_INPUTS), help="comma-separated perception.coco_input values")
-    parser.add_argument("--precisions", default=PerceptionConfig().coco_precision,
-                        help="comma-separated perception.coco_precision values; fp32 among several is the reference")
+    parser.add_argument("--modes", default=",".join(COCO_INPUTS), help="comma-separated perception.<network>_input values")
+    parser.add_argument("--precisions", help="comma-separated perception.<network>_precision values (default: the "
+                                             "config's); fp32 among several is the reference")
     parser.add_argument("--threshold", type=float, default=0.5, help="confidence that counts (the braking threshold)")
-    parser.add_argument("--upscale", type=float, help="perception.coco_upscale for the upscale mode (default: the config's)")
+    parser.add_argument("--upscale", type=float, help="perception.<network>_upscale for the upscale mode (default: the config's)")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     parser.add_argument("--limit", type=int, help="only the first N frames")
-    parser.add_argument("--out", default="results/coco_realism")
+    parser.add_argument("--out", help="output folder (default results/<network>_realism)")
     args = parser.parse_args(argv)
+    defaults = PerceptionConfig()
+    if args.precisions is None:
+        args.precisions = getattr(defaults, f"{args.network}_precision")
+    if args.out is None:
+        args.out = f"results/{args.network}_realism"
     modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())
     precisions = tuple(p.strip() for p in args.precisions.split(",") if p.strip())
     try:
@@ -296,13 +314,13 @@ def main(argv: list[str] | None = None) -> int:
         for data in map(Path, args.data):
             if not (data / "train.jsonl").is_file():
                 raise ConfigError(f"{data} has no train.jsonl; make one with `avsim detector make-data --out {data}`")
-        defaults = PerceptionConfig()
-        upscale = defaults.coco_upscale if args.upscale is None else args.upscale
+        upscale = getattr(defaults, f"{args.network}_upscale") if args.upscale is None else args.upscale
         if not 1 <= upscale <= 4:
             raise ConfigError(f"--upscale must be in [1, 4], got {upscale}")
         rows = []
         for data in map(Path, args.data):
-            for row in score_dataset(data, tuple((m, p) for m in modes for p in precisions), args.threshold, args.workers, upscale, defaults.min_confidence, args.limit):
+            for row in score_dataset(data, tuple((m, p) for m in modes for p in precisions), args.threshold, args.workers,
+                                     upscale, defaults.min_confidence, args.limit, args.network):
                 rows.append({**row, "image": str(data / row["image"])})
     except ConfigError as exc:
         print(f"avsim: error: {exc}", file=sys.stderr)
@@ -312,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
     with open(out / "frames.jsonl", "w") as handle:
         for row in rows:
             handle.write(json.dumps(row) + "\n")
-    text = report(rows, args.threshold)
+    text = report(rows, args.threshold, args.network)
     (out / "report.md").write_text(text)
     print(text)
     print(f"wrote {out}/frames.jsonl and {out}/report.md")

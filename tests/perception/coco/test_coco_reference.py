@@ -27,47 +27,17 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from avsim.config import SimConfig, with_overrides
-from avsim.loop import ClosedLoop
 from avsim.perception.coco import fetch
 from avsim.perception.coco.model import load_centernet
 from avsim.perception.coco.ops import resize_bilinear_tf
 from avsim.perception.coco.preprocess import image_tensor
-from avsim.vehicle.physics import FRONT_BUMPER_X_M
-from avsim.world.towns import TOWNS
+from tests.perception.reference_renders import render_views
 
 NODE_DIR = Path(__file__).parent / "node_reference"
 TFJS_VERSION = "4.22.0"
 BOX_TOL_PX = 0.5
 SCORE_TOL = 1e-3
-# (placement, camera, bumper-to-stop-line distance [m], lateral offset [m], yaw [deg]) per town.
-VIEWS = (
-    ("near", "front", 10.0, 0.0, 0.0),
-    ("standard", "front", 25.0, 0.0, 0.0),
-    ("far", "front", 40.0, 0.0, 0.0),
-    ("standard", "front", 30.0, 1.5, 3.0),
-    ("standard", "side", 6.0, 0.0, 0.0),
-    ("far", "side", 14.0, 0.0, 0.0),
-    ("near", "side", 18.0, -0.5, -4.0),
-)
 SIDE_WINDOW_X0 = 64  # a 512 px wide window of the side camera's 640 px
-
-
-def _renders() -> list[tuple[str, np.ndarray]]:
-    frames = []
-    for town in TOWNS.names():
-        for placement in ("near", "standard", "far"):
-            views = [v for v in VIEWS if v[0] == placement]
-            loop = ClosedLoop(with_overrides(SimConfig(), {"scenario": {"town": town, "placement": placement},
-                                                             "perception": {"kind": "oracle"}}))
-            try:
-                for _, camera, dist_m, offset_m, yaw_deg in views:
-                    loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M,
-                                       loop.scene.layout.lane_center_y_m + offset_m, np.radians(yaw_deg), 0.0)
-                    frames.append((f"{town}/{placement}/{camera}/{dist_m:g}m", loop.rig.render_rgb(loop.data, camera)))
-            finally:
-                loop.close()
-    return frames
 
 
 def _side_window(frame: np.ndarray) -> torch.Tensor:
@@ -111,7 +81,7 @@ def test_port_matches_tfjs_runtime_on_21_renders(node_reference, tmp_path):
     torch.set_num_threads(1)
     model = load_centernet()
     json_path, bin_path = fetch.model_paths()
-    frames = _renders()
+    frames = render_views()
     assert len(frames) >= 20
     inputs, ours = [], {}
     for i, (name, frame) in enumerate(frames):

