@@ -5,24 +5,16 @@
 2. every output path the subcommand declared (`avsim.outputs.add_output_argument`) is checked,
    before any work starts;
 3. the subcommand runs.
-What the user sees when something stops it, always one line on stderr:
-- an AvsimError (bad input, a bad environment): "avsim: error: ...", exit 2 (a PhysicsError 3,
-  every run of a batch failed 1);
-- Ctrl-C: "avsim: interrupted; ...", saying what was kept and how to resume, exit 130;
-- an OSError (a full disk, say): "avsim: error: ...", naming the file, exit 1;
-- anything else, a bug: "avsim: internal error: ...", with the path of a file holding the full
-  traceback, exit 1.
-`--debug` (anywhere on the command line) prints the full traceback as well.
+What the user sees when something stops it is one line on stderr (`avsim.boundary`, shared
+with the `python -m avsim....` entry points): exit 2 for bad input, 128 + the signal for Ctrl-C
+(130), SIGTERM (143) or SIGHUP (129), 1 for a full disk or a bug. `--debug` (anywhere on the
+command line) prints the full traceback as well.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
-import tempfile
-import traceback
-import typing
 from pathlib import Path
 from collections.abc import Iterator, Sequence
 from typing import Any
@@ -30,9 +22,11 @@ from typing import Any
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
 from avsim.config import check_seed
-from avsim.errors import AvsimError, ConfigError, Interrupted
+from avsim.boundary import run_guarded
+from avsim.errors import ConfigError
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
+from avsim.validation import OneLineArgumentParser
 
 
 def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
@@ -287,15 +281,8 @@ def _add_detector_commands(sub) -> None:
     evaluate.set_defaults(func=_cmd_eval)
 
 
-class _OneLineErrors(argparse.ArgumentParser):
-    """argparse, with its own errors (an unknown flag, a bad int) in one line, as avsim's are."""
-
-    def error(self, message: str) -> typing.NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _OneLineErrors(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
+    parser = OneLineArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="drive one scenario and print its summary")
@@ -400,50 +387,15 @@ def iter_parsers(parser: argparse.ArgumentParser, name: str = "avsim") -> Iterat
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the `avsim` command line; returns the exit status (see the module docstring)."""
     args = build_parser().parse_args(argv)
-    debug = bool(getattr(args, "debug", False))
-    try:
+
+    def command() -> int:
         check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
         check_declared_outputs(args)  # before any work: a bad path never costs a finished run
         if getattr(args, "seed", None) is not None:  # every subcommand's --seed, one range
             check_seed(args.seed, "--seed")
         return args.func(args)
-    except Interrupted as exc:
-        return _report(f"avsim: interrupted; {exc}", exc.exit_code, debug)
-    except AvsimError as exc:
-        return _report(f"avsim: error: {exc}", exc.exit_code, debug)
-    except KeyboardInterrupt:
-        return _report("avsim: interrupted; every file is written whole or not at all, so none is half-written",
-                       Interrupted.exit_code, debug)
-    except OSError as exc:  # the machine's: a full disk, a folder removed under a running command
-        where = _save_traceback()
-        return _report(f"avsim: error: {exc.strerror or exc}" + (f": '{exc.filename}'" if exc.filename else "")
-                       + f" (full traceback in {where}, or rerun with --debug)", 1, debug)
-    except Exception as exc:  # noqa: BLE001 - the one place that turns a bug into one line and a file
-        where = _save_traceback()
-        return _report(f"avsim: internal error: {type(exc).__name__}: {_one_line(str(exc))} (a bug in avsim; "
-                       f"full traceback in {where}, or rerun with --debug)", 1, debug)
 
-
-def _report(message: str, status: int, debug: bool) -> int:
-    if debug:
-        traceback.print_exc()
-    print(_one_line(message), file=sys.stderr)
-    return status
-
-
-def _one_line(text: str) -> str:
-    return " ".join(line.strip() for line in text.splitlines() if line.strip())
-
-
-def _save_traceback() -> str:
-    """Write the exception being handled, with its traceback, to a new file in the temp folder; its path."""
-    try:
-        fd, path = tempfile.mkstemp(prefix="avsim-traceback-", suffix=".txt")
-        with os.fdopen(fd, "w") as handle:
-            handle.write(f"avsim {' '.join(sys.argv[1:])}\n\n{traceback.format_exc()}")
-        return path
-    except OSError:
-        return "nowhere (the temp folder is not writable)"
+    return run_guarded(command, prog="avsim", debug=bool(getattr(args, "debug", False)))
 
 
 if __name__ == "__main__":

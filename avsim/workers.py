@@ -43,6 +43,8 @@ def init_worker(env: dict[str, str], parent_pid: int) -> None:
     and the parent watched."""
     os.environ.update(env)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):  # a closed terminal hangs up the whole group; the parent decides, as for Ctrl-C
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     # Not an exception: the pool's worker loop would catch it and carry on with the next task.
     signal.signal(signal.SIGTERM, lambda signum, frame: exit_now(TERMINATED_EXIT_STATUS))
     watch_parent(parent_pid)
