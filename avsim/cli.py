@@ -21,22 +21,27 @@ from typing import Any
 
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
-from avsim.config import check_seed
+from avsim.config import LoopConfig, ScenarioConfig, check_seed
 from avsim.boundary import run_guarded
 from avsim.errors import ConfigError
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
-from avsim.validation import OneLineArgumentParser
+from avsim.validation import OneLineArgumentParser, config_flag, name_list_flag, number_flag
+
+SEED_FLAG = config_flag(ScenarioConfig, "seed")
+WORKERS_FLAG = number_flag(1, 1024, integer=True)
+# A finite integer whose range the command's own config declares (e.g. DataGenConfig, checked before any work).
+INT_FLAG = number_flag(integer=True)
 
 
 def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--town", help="town name (town03, town07, town10)")
     parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
     parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
-    parser.add_argument("--speed-kmh", type=float, help="cruise speed [km/h]")
-    parser.add_argument("--seed", type=int, help="random seed (start jitter)")
-    parser.add_argument("--physics-dt-s", type=float, help="physics step [s] (default 0.002)")
-    parser.add_argument("--control-dt-s", type=float, help="control and sensing period [s] (default 0.05)")
+    parser.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), help="cruise speed [km/h]")
+    parser.add_argument("--seed", type=SEED_FLAG, help="random seed (start jitter)")
+    parser.add_argument("--physics-dt-s", type=config_flag(LoopConfig, "physics_dt_s"), help="physics step [s] (default 0.002)")
+    parser.add_argument("--control-dt-s", type=config_flag(LoopConfig, "control_dt_s"), help="control and sensing period [s] (default 0.05)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override any config key, e.g. --set policy.baseline_brake=0.9 (repeatable)")
 
@@ -135,7 +140,7 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
             raise ConfigError("--strip needs --towns (e.g. --towns town07,town03,town10): it puts their front cameras side by side")
         paths = save_snapshot(config, args.dist_m, args.out)
     else:
-        towns = [t.strip() for t in args.towns.split(",") if t.strip()]
+        towns = args.towns  # a non-empty list of names (name_list_flag)
         for town in towns:
             TOWNS.get(town)  # every name checked before anything renders
         if not args.strip:
@@ -240,12 +245,12 @@ def _add_detector_commands(sub) -> None:
     dsub = detector.add_subparsers(dest="detector_command", required=True)
     data = dsub.add_parser("make-data", help="render labelled sign images (boxes from segmentation)")
     add_output_argument(data, "--out", kind=FOLDER, default="data/signs", help="dataset directory (default data/signs)")
-    data.add_argument("--train", type=int, default=6000, help="training images")
-    data.add_argument("--val", type=int, default=1000, help="validation images (held-out town seed and lighting)")
-    data.add_argument("--images-per-scene", type=int, default=25)
-    data.add_argument("--seed", type=int, default=0)
-    data.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
-    data.add_argument("--max-dist-m", type=float, default=80.0,
+    data.add_argument("--train", type=INT_FLAG, default=6000, help="training images")
+    data.add_argument("--val", type=INT_FLAG, default=1000, help="validation images (held-out town seed and lighting)")
+    data.add_argument("--images-per-scene", type=INT_FLAG, default=25)
+    data.add_argument("--seed", type=SEED_FLAG, default=0)
+    data.add_argument("--workers", type=INT_FLAG, default=min(2, os.cpu_count() or 1))
+    data.add_argument("--max-dist-m", type=number_flag(unit="m"), default=80.0,
                       help="farthest target sign [m] (default 80; 160 to measure the perception's range)")
     data.add_argument("--format", choices=("jsonl", "coco", "yolo"), default="jsonl",
                       help="labels: jsonl (default, read by detector train/eval), coco (annotations/instances_SPLIT.json) "
@@ -274,8 +279,9 @@ def _add_detector_commands(sub) -> None:
     evaluate.add_argument("--weights", default="", help="weights file (default: the shipped models/sign_detector.pt)")
     evaluate.add_argument("--data", default="data/signs", help="dataset directory (default data/signs)")
     evaluate.add_argument("--split", default="val", choices=("val", "train"))
-    evaluate.add_argument("--conf", type=float, default=0.5, help="confidence threshold for recall and false positives")
-    evaluate.add_argument("--limit", type=int, help="score only the first N images")
+    evaluate.add_argument("--conf", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
+                          help="confidence threshold for recall and false positives")
+    evaluate.add_argument("--limit", type=number_flag(1, None, integer=True), help="score only the first N images")
     add_output_argument(evaluate, "--out", kind=FOLDER, default="results/detector_eval", help="report directory")
     evaluate.add_argument("--no-progress", action="store_true", help="no progress bar")
     evaluate.set_defaults(func=_cmd_eval)
@@ -303,7 +309,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
     rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
-    rep.add_argument("--workers", type=int, help="runs at once: worker processes, or the local Ray cluster's CPUs "
+    rep.add_argument("--workers", type=WORKERS_FLAG, help="runs at once: worker processes, or the local Ray cluster's CPUs "
                                                   "(default: one per core); with --address, at most this many in flight")
     rep.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
@@ -318,7 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
                                        "and safety_map.png")
     swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
     add_output_argument(swp, "--out", kind=FOLDER, required=True, help="results folder")
-    swp.add_argument("--workers", type=int,
+    swp.add_argument("--workers", type=WORKERS_FLAG,
                      help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                           "with --address, at most this many runs in flight (default: the cluster's CPUs)")
     swp.add_argument("--backend", choices=("local", "ray"), default="local",
@@ -335,7 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
     board.add_argument("file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
     add_output_argument(board, "--out", kind=FOLDER, default="results/leaderboard", help="results folder")
     board.add_argument("--quick", action="store_true", help="the file's quick subset (quick_seeds per place and scenario)")
-    board.add_argument("--workers", type=int,
+    board.add_argument("--workers", type=WORKERS_FLAG,
                        help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)")
     board.add_argument("--backend", choices=("local", "ray"), default="local",
                        help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
@@ -346,8 +352,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     _add_scenario_flags(snap)
-    snap.add_argument("--dist-m", type=float, default=30.0, help="front bumper to stop line [m]")
-    snap.add_argument("--towns", help="with --strip: comma-separated towns whose front cameras are put side by side")
+    snap.add_argument("--dist-m", type=number_flag(unit="m"), default=30.0, help="front bumper to stop line [m]")
+    snap.add_argument("--towns", type=name_list_flag(), help="with --strip: comma-separated towns whose front cameras are put side by side")
     snap.add_argument("--strip", action="store_true",
                       help="write PREFIX.png: the front camera of each of --towns, side by side at half size")
     add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png", ".png"), default="snapshot",
@@ -386,7 +392,10 @@ def iter_parsers(parser: argparse.ArgumentParser, name: str = "avsim") -> Iterat
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the `avsim` command line; returns the exit status (see the module docstring)."""
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # argparse printed its one line (or --help); its status, as for any refusal
+        return exc.code if isinstance(exc.code, int) else 2
 
     def command() -> int:
         check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
