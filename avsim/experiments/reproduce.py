@@ -27,6 +27,7 @@ from avsim.errors import ConfigError, Interrupted, RunsFailedError
 from avsim.experiments.batch import check_backend, resolve_workers, run_batch, software_versions
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.run_task import RunSpec
+from avsim.experiments.output_lock import locked_output
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
 
@@ -62,12 +63,12 @@ def slug(name: str) -> str:
 
 
 def _fresh_dir(root: Path, stamp: str) -> Path:
+    """A folder name under `root` that does not exist yet (made by `locked_output`)."""
     out = root / stamp
     suffix = 1
     while out.exists():
         suffix += 1
         out = root / f"{stamp}_{suffix}"
-    out.mkdir(parents=True)
     return out
 
 
@@ -79,14 +80,22 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
     the experiment files and `workers`, before the results folder is made.
     """
-    from avsim.experiments.report import write_report
-
     experiments = load_study(experiment_paths, quick)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
     out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
+    # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no folder.
+    with locked_output(out, "avsim reproduce", results_name="runs.jsonl"):
+        return _reproduce_into(out, experiments, quick=quick, workers=workers, progress=progress, backend=backend,
+                               address=address, started=started, started_at=started_at)
+
+
+def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, workers: int | None, progress: bool,
+                    backend: str, address: str | None, started: float, started_at: dt.datetime) -> Path:
+    from avsim.experiments.report import write_report
+
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     specs = specs_for(experiments, out)

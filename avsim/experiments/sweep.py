@@ -56,6 +56,7 @@ from typing import Any
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.output_lock import locked_output
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
@@ -210,15 +211,23 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     workers: runs at once (default: one per core; on a Ray cluster at `address`, the cluster's
     CPUs). backend, address: see `avsim.experiments.batch.run_batch`.
     Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is
-    off, or the backend cannot run (Ray not installed).
+    off, the backend cannot run (Ray not installed), or another command holds `out_dir`.
     """
-    from avsim.experiments.sweep_report import write_sweep_report
-
     check_backend(backend, address)
     out = Path(out_dir)
+    workers = resolve_workers(workers, address)
+    # One command at a time in `out`; a folder made here and left without a record is removed.
+    with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
+        return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
+                                 address=address)
+
+
+def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: bool, progress: bool, backend: str,
+                      address: str | None) -> Path:
+    from avsim.experiments.sweep_report import write_sweep_report
+
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-    workers = resolve_workers(workers, address)
 
     runs = sweep.runs()
     specs = sweep.specs()
