@@ -100,7 +100,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address)
+                    backend=args.backend, address=args.address, yes=args.yes)
     print((out / "report.md").read_text())
     print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
     return 0
@@ -109,7 +109,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from avsim.experiments.sweep import load_sweep, run_sweep
 
-    sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
+    sweep = load_sweep(args.file, yes=args.yes)  # checks the size, then every grid value, before anything runs
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
                     backend=args.backend, address=args.address)
     print((out / "summary.md").read_text())
@@ -318,6 +318,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     rep.set_defaults(func=_cmd_reproduce)
 
     swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
@@ -334,6 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
     swp.set_defaults(func=_cmd_sweep)
 
     board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "

@@ -77,7 +77,13 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     unknown = [d for d in detectors if d not in ("detector", "coco")]
     if unknown or not detectors:
         raise ConfigError(f"--detectors takes detector and/or coco, comma-separated; got '{args.detectors}'")
+    from avsim.world.towns import PLACEMENTS, TOWNS
+
     placements = tuple(p.strip() for p in args.placements.split(","))
+    # Every name of the plan is checked before the first render.
+    TOWNS.get(args.town)
+    for placement in (*placements, args.drive_placement):
+        PLACEMENTS.get(placement)
     threshold = SimConfig().policy.conf_threshold
     out = Path(args.out)
     reports, drive_bys = [], {}

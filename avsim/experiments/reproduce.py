@@ -28,6 +28,7 @@ from avsim.experiments.batch import check_backend, resolve_workers, run_batch, s
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.output_lock import locked_output
+from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
 
@@ -37,14 +38,18 @@ STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_a
                      "fig3_detection", "adaptive_attacker", "wet_road", "sensitivity", "coco_detector")
 
 
-def load_study(experiment_paths: list[Path] | None = None, quick: bool = False) -> list[Experiment]:
-    """The experiments to run; `quick` keeps one seed per cell."""
+def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, yes: bool = False) -> list[Experiment]:
+    """The experiments to run; `quick` keeps one seed per cell. yes: allow a plan of more than
+    `plan_size.RUNS_WITHOUT_YES` runs (counted before any run is built)."""
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in STUDY_EXPERIMENTS]
     experiments = [load_experiment(path) for path in paths]
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
-    return [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
+    experiments = [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
+    runs = sum(len(e.cells) * e.seeds for e in experiments)
+    check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
+    return experiments
 
 
 def specs_for(experiments: list[Experiment], out_dir: Path) -> list[RunSpec]:
@@ -74,13 +79,13 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
 
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
-              address: str | None = None) -> Path:
+              address: str | None = None, yes: bool = False) -> Path:
     """Run the study's experiments; returns the results folder (see the module docstring).
 
     backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
     the experiment files and `workers`, before the results folder is made.
     """
-    experiments = load_study(experiment_paths, quick)
+    experiments = load_study(experiment_paths, quick, yes)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
     started = time.perf_counter()

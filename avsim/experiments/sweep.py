@@ -45,6 +45,7 @@ from __future__ import annotations
 import datetime as dt
 import itertools
 import json
+import math
 import os
 import shutil
 import time
@@ -57,6 +58,7 @@ from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.output_lock import locked_output
+from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
@@ -103,10 +105,20 @@ class Sweep:
     def name(self) -> str:
         return self.path.stem
 
+    @property
+    def size(self) -> int:
+        """The number of runs: grid points x seeds, computed without building any."""
+        return math.prod(len(values) for _, values in self.grid) * self.seeds
+
     def points(self) -> list[dict[str, Scalar]]:
         """Every combination of grid values; the first key varies slowest."""
+        return list(self.iter_points())
+
+    def iter_points(self) -> Iterator[dict[str, Scalar]]:
+        """`points`, one at a time."""
         keys = [key for key, _ in self.grid]
-        return [dict(zip(keys, values)) for values in itertools.product(*(values for _, values in self.grid))]
+        for values in itertools.product(*(values for _, values in self.grid)):
+            yield dict(zip(keys, values))
 
     def config_at(self, point: Mapping[str, Scalar], seed: int) -> SimConfig:
         overrides: dict[str, Any] = {"scenario": {"seed": seed}}
@@ -129,8 +141,11 @@ def point_label(point: Mapping[str, Scalar]) -> str:
 
 # ---- loading ---------------------------------------------------------------------------------
 
-def load_sweep(path: str | os.PathLike) -> Sweep:
-    """Read and check a sweep file; see the module docstring for its format."""
+def load_sweep(path: str | os.PathLike, *, yes: bool = False) -> Sweep:
+    """Read and check a sweep file; see the module docstring for its format.
+
+    yes: allow more than `plan_size.RUNS_WITHOUT_YES` runs (the user's --yes); the size is
+    checked before any combination is built."""
     path = Path(path)
     raw, title, seeds = read_run_file(path, "sweep", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
 
@@ -142,8 +157,9 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     with located(path, "[grid]"):
         grid = _parse_grid(raw.get("grid"), base)
     sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid)
+    check_plan_size(sweep.size, f"{path}: {sweep.size // seeds:,} grid points x {seeds:,} seeds", yes=yes)
     # Each value is valid alone; check every combination too (limits that tie two keys together).
-    for point in sweep.points():
+    for point in sweep.iter_points():
         with located(path, f"[grid] point {point_label(point)}"):
             sweep.config_at(point, 0)
     return sweep
