@@ -86,6 +86,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = _config_from_args(args)
+    from avsim.experiments.spec import check_run_names
+
+    check_run_names(config)  # every name and the sign texture, before the scene is built
     output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4)
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
