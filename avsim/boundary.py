@@ -11,7 +11,8 @@ What the user sees when something stops it, always one line on stderr:
 - an OSError (a full disk, say): "PROG: error: ...", naming the file, exit 1;
 - anything else, a bug: "PROG: internal error: ...", with the path of a file holding the full
   traceback, exit 1.
-With `debug` the full traceback is printed as well.
+With `debug` the full traceback is printed as well. Python warnings raised meanwhile are printed
+after a command that succeeded, one line each, and dropped beside a refusal.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import os
 import sys
 import tempfile
 import traceback
+import warnings
 from collections.abc import Callable
 
 from avsim.errors import AvsimError, Interrupted
@@ -29,6 +31,17 @@ from avsim.termination import handle_termination, interrupt_exit_status, interru
 def run_guarded(body: Callable[[], int | None], *, prog: str = "avsim", debug: bool = False) -> int:
     """Run `body` (returns an exit status, or None for 0) inside the boundary; its exit status."""
     handle_termination()
+    with warnings.catch_warnings(record=True) as caught:
+        status = _run(body, prog, debug)
+    # Python warnings (a library's deprecation, torch's note on an old pickle) come after the
+    # outcome, one line each, and not at all beside a refusal, whose one line says what matters.
+    if status == 0:
+        for warning in caught:
+            print(one_line(f"{prog}: warning: {warning.message}"), file=sys.stderr)
+    return status
+
+
+def _run(body: Callable[[], int | None], prog: str, debug: bool) -> int:
     try:
         return body() or 0
     except Interrupted as exc:

@@ -19,14 +19,16 @@ from pathlib import Path
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+from avsim.boundary import run_guarded
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
 from avsim.config import LoopConfig, ScenarioConfig, check_seed
-from avsim.boundary import run_guarded
 from avsim.errors import ConfigError
+from avsim.mujoco_warnings import route_mujoco_warnings_to_log
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
 from avsim.validation import OneLineArgumentParser, config_flag, name_list_flag, number_flag
+from avsim.workers import quiet_resource_tracker
 
 SEED_FLAG = config_flag(ScenarioConfig, "seed")
 WORKERS_FLAG = number_flag(1, 1024, integer=True)
@@ -404,6 +406,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     def command() -> int:
         check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
+        route_mujoco_warnings_to_log()  # its instability printout would precede the one-line PhysicsError
+        quiet_resource_tracker()  # a SIGKILLed batch leaves no multiprocessing warning on the terminal
         check_declared_outputs(args)  # before any work: a bad path never costs a finished run
         if getattr(args, "seed", None) is not None:  # every subcommand's --seed, one range
             check_seed(args.seed, "--seed")

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 import time
 import typing
@@ -36,6 +37,19 @@ TERMINATED_EXIT_STATUS = 143
 
 _watching: set[int] = set()
 _watch_lock = threading.Lock()
+
+
+# The filter, in `python -W` form, that keeps multiprocessing's resource tracker quiet about the
+# semaphores a SIGKILLed parent could not release: the tracker releases them, and its two-line
+# warning would follow whatever the killed command last printed.
+_TRACKER_FILTER = "ignore:resource_tracker:UserWarning"
+
+
+def quiet_resource_tracker() -> None:
+    """Pass `_TRACKER_FILTER` to the resource tracker process, which takes this interpreter's -W
+    options when a pool first starts it (call before the first pool)."""
+    if _TRACKER_FILTER not in sys.warnoptions:
+        sys.warnoptions.append(_TRACKER_FILTER)
 
 
 def init_worker(env: dict[str, str], parent_pid: int) -> None:
