@@ -24,7 +24,7 @@ from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
 from avsim.config import LoopConfig, ScenarioConfig, check_seed
 from avsim.errors import ConfigError
-from avsim.mujoco_warnings import route_mujoco_warnings_to_log
+from avsim.library_output import quiet_rust_logs, route_mujoco_warnings_to_log
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
 from avsim.validation import OneLineArgumentParser, config_flag, name_list_flag, number_flag
@@ -407,6 +407,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     def command() -> int:
         check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
         route_mujoco_warnings_to_log()  # its instability printout would precede the one-line PhysicsError
+        quiet_rust_logs()  # rerun's own lines about a full disk would precede the one-line OutputError
         quiet_resource_tracker()  # a SIGKILLed batch leaves no multiprocessing warning on the terminal
         check_declared_outputs(args)  # before any work: a bad path never costs a finished run
         if getattr(args, "seed", None) is not None:  # every subcommand's --seed, one range

@@ -8,7 +8,7 @@ import mujoco
 
 from avsim.boundary import run_guarded
 from avsim.errors import ConfigError
-from avsim.mujoco_warnings import route_mujoco_warnings_to_log
+from avsim.library_output import route_mujoco_warnings_to_log
 
 
 def test_a_warning_beside_a_refusal_is_dropped_and_after_success_is_one_line(capsys):
