@@ -17,6 +17,7 @@ import pytest
 import avsim.loop
 from avsim import cli
 from avsim.config import MAX_SEED
+from helpers import write_files
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
@@ -155,13 +156,7 @@ def _files_under(root: Path) -> set[str]:
 @pytest.mark.parametrize("case", list(CASES.values()), ids=list(CASES))
 def test_bad_input_is_one_line_and_writes_nothing(case, tmp_path, capsys, monkeypatch, no_simulation):
     tmp = str(tmp_path)
-    for name, content in case.files.items():
-        path = tmp_path / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(content, bytes):
-            path.write_bytes(content)
-        else:
-            path.write_text(content.replace("{tmp}", tmp))
+    write_files(tmp_path, case.files, tmp)
     for key, value in case.env.items():
         monkeypatch.setenv(key, value)
     monkeypatch.chdir(tmp_path)  # relative default outputs (results/, snapshot_*.png) land here too

@@ -20,6 +20,7 @@ import pytest
 import avsim.attacks.view_bank
 import avsim.loop
 from avsim import cli
+from helpers import write_files
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
@@ -178,13 +179,7 @@ def _files_under(root: Path) -> set[str]:
 
 def _run_case(case: Case, tmp_path: Path, capsys, monkeypatch) -> None:
     tmp = str(tmp_path)
-    for name, content in case.files.items():
-        path = tmp_path / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(content, bytes):
-            path.write_bytes(content)
-        else:
-            path.write_text(content.replace("{tmp}", tmp))
+    write_files(tmp_path, case.files, tmp)
     monkeypatch.chdir(tmp_path)  # relative default outputs (results/, data/signs) land here too
     before = _files_under(tmp_path)
     status = cli.main([arg.replace("{tmp}", tmp) for arg in case.argv])

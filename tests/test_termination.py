@@ -15,28 +15,11 @@ from pathlib import Path
 import pytest
 
 from avsim.experiments.results_file import read_records
+from helpers import REPO, start_avsim, wait_until
 
-REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
-TIMEOUT_S = 120.0
+TIMEOUT_S = 120.0  # for a signalled process to exit
 RUN_ARGS = ["--perception", "oracle", "--set", "scenario.start_dist_m=100"]
-
-
-def _start(argv: list[str], stderr: Path) -> subprocess.Popen:
-    with stderr.open("wb") as err:
-        return subprocess.Popen([sys.executable, "-m", "avsim", *argv], cwd=REPO, stdout=subprocess.DEVNULL, stderr=err,
-                                start_new_session=True)
-
-
-def _wait_until(condition, proc: subprocess.Popen, what: str, log: Path) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while not condition():
-        if proc.poll() is not None:
-            pytest.fail(f"avsim exited ({proc.returncode}) before {what}:\n{log.read_text()}")
-        if time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"not {what} within {TIMEOUT_S} s")
-        time.sleep(0.02)
 
 
 def _temporaries(folder: Path) -> list[str]:
@@ -48,8 +31,8 @@ def test_a_signal_during_run_rrd_is_one_line_and_leaves_no_temporary(tmp_path, s
     out = tmp_path / "out"
     out.mkdir()
     log = tmp_path / "stderr.log"
-    proc = _start(["run", *RUN_ARGS, "--rrd", str(out / "a.rrd"), "--json", str(out / "a.json")], log)
-    _wait_until(lambda: len(_temporaries(out)) == 1, proc, "the recorder started", log)
+    proc = start_avsim(["run", *RUN_ARGS, "--rrd", str(out / "a.rrd"), "--json", str(out / "a.json")], log)
+    wait_until(lambda: len(_temporaries(out)) == 1, proc, "the recorder started", log)
     time.sleep(0.3)  # some frames into the recording
     proc.send_signal(signum)
     assert proc.wait(timeout=TIMEOUT_S) == status, log.read_text()
@@ -68,8 +51,8 @@ def test_sigterm_during_a_sweep_keeps_the_finished_runs_and_a_resume_loses_nothi
     out, log = tmp_path / "terminated", tmp_path / "stderr.log"
     results = out / "results.jsonl"
     argv = ["sweep", str(SMOKE), "--out", str(out), "--workers", "2", "--no-progress"]
-    proc = _start(argv, log)
-    _wait_until(lambda: results.exists() and results.read_text().count("\n") >= 1, proc, "its first record", log)
+    proc = start_avsim(argv, log)
+    wait_until(lambda: results.exists() and results.read_text().count("\n") >= 1, proc, "its first record", log)
     proc.send_signal(signal.SIGTERM)  # the main process only, as a scheduler sends it
     assert proc.wait(timeout=TIMEOUT_S) == 143
     lines = log.read_text().splitlines()
