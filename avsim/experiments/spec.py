@@ -162,7 +162,7 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
         raise ConfigError(f"{path}: 'title' must be a string, got {title!r}")
     seeds = raw.get("seeds", default_seeds)
     if type(seeds) is not int or not 1 <= seeds <= MAX_RUNS:
-        raise ConfigError(f"{path}: 'seeds' must be an integer in [1, {MAX_RUNS:,}], got {seeds!r}")
+        raise ConfigError(f"{path}: 'seeds' must be an integer >= 1 (and at most {MAX_RUNS:,}), got {seeds!r}")
     return raw, title, seeds
 
 

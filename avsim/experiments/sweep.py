@@ -128,11 +128,21 @@ class Sweep:
 
     def runs(self) -> list[SweepRun]:
         """Every grid point at seeds 0 .. seeds-1, point by point."""
-        return [SweepRun(point, seed, self.config_at(point, seed)) for point in self.points() for seed in range(self.seeds)]
+        return list(self.iter_runs())
+
+    def iter_runs(self) -> Iterator[SweepRun]:
+        """`runs`, one at a time: each config is built when it is asked for."""
+        for point in self.iter_points():
+            for seed in range(self.seeds):
+                yield SweepRun(point, seed, self.config_at(point, seed))
+
+    def spec_of(self, run: SweepRun) -> RunSpec:
+        """A run as a batch spec: experiment = the sweep's name, cell = the point's label; no recording."""
+        return RunSpec(self.name, run.label, run.seed, run.config)
 
     def specs(self) -> list[RunSpec]:
-        """The runs as batch specs: experiment = the sweep's name, cell = the point's label; no recording."""
-        return [RunSpec(self.name, run.label, run.seed, run.config) for run in self.runs()]
+        """Every run as a batch spec (`spec_of`)."""
+        return [self.spec_of(run) for run in self.iter_runs()]
 
 
 def point_label(point: Mapping[str, Scalar]) -> str:
@@ -245,9 +255,12 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
 
-    runs = sweep.runs()
-    specs = sweep.specs()
-    point_of = {spec.spec_hash: run.point for spec, run in zip(specs, runs)}
+    # One pass over the runs, each config built once (the plan's size was checked when it was loaded).
+    specs, point_of = [], {}
+    for run in sweep.iter_runs():
+        spec = sweep.spec_of(run)
+        specs.append(spec)
+        point_of[spec.spec_hash] = run.point
     if len(point_of) != len(specs):
         raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
 
