@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import math
 import typing
 from collections.abc import Callable, Sequence
@@ -117,12 +118,18 @@ def declared_ranges(cls_or_instance: Any) -> dict[str, Range]:
 def check_ranges(instance: Any, section: str) -> None:
     """Check every ranged field of the dataclass `instance`; a field that is None and may be
     (an `X | None` annotation) is skipped. Raises a one-line ConfigError naming `section.field`."""
-    hints = typing.get_type_hints(type(instance))
-    for name, spec in declared_ranges(instance).items():
+    for name, spec, optional in _ranged_fields(type(instance)):
         value = getattr(instance, name)
-        if value is None and type(None) in typing.get_args(hints[name]):
+        if value is None and optional:
             continue
         spec.check(value, f"{section}.{name}")
+
+
+@functools.cache
+def _ranged_fields(cls: type) -> tuple[tuple[str, Range, bool], ...]:
+    """(name, Range, may be None) of each ranged field of `cls`; cached, as configs are built per run."""
+    hints = typing.get_type_hints(cls)
+    return tuple((name, spec, type(None) in typing.get_args(hints[name])) for name, spec in declared_ranges(cls).items())
 
 
 def check_finite_tree(value: Any, name: str) -> None:
