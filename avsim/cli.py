@@ -5,45 +5,46 @@
 2. every output path the subcommand declared (`avsim.outputs.add_output_argument`) is checked,
    before any work starts;
 3. the subcommand runs.
-What the user sees when something stops it, always one line on stderr:
-- an AvsimError (bad input, a bad environment): "avsim: error: ...", exit 2 (a PhysicsError 3,
-  every run of a batch failed 1);
-- Ctrl-C: "avsim: interrupted; ...", saying what was kept and how to resume, exit 130;
-- an OSError (a full disk, say): "avsim: error: ...", naming the file, exit 1;
-- anything else, a bug: "avsim: internal error: ...", with the path of a file holding the full
-  traceback, exit 1.
-`--debug` (anywhere on the command line) prints the full traceback as well.
+What the user sees when something stops it is one line on stderr (`avsim.boundary`, shared
+with the `python -m avsim....` entry points): exit 2 for bad input, 128 + the signal for Ctrl-C
+(130), SIGTERM (143) or SIGHUP (129), 1 for a full disk or a bug. `--debug` (anywhere on the
+command line) prints the full traceback as well.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
-import tempfile
-import traceback
-import typing
 from pathlib import Path
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+from avsim.boundary import run_guarded
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
-from avsim.config import check_seed
-from avsim.errors import AvsimError, ConfigError, Interrupted
+from avsim.config import LoopConfig, ScenarioConfig, check_seed
+from avsim.errors import ConfigError
+from avsim.library_output import quiet_rust_logs, route_mujoco_warnings_to_log
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
 from avsim.sensors.gl_backend import check_gl_backend
-from avsim.workers import BATCH_HELP, DEFAULT_BATCH
+from avsim.validation import OneLineArgumentParser, config_flag, name_list_flag, number_flag
+from avsim.workers import BATCH_HELP, DEFAULT_BATCH, quiet_resource_tracker
+
+SEED_FLAG = config_flag(ScenarioConfig, "seed")
+WORKERS_FLAG = number_flag(1, 1024, integer=True)
+BATCH_FLAG = number_flag(1, 1024, integer=True)
+# A finite integer whose range the command's own config declares (e.g. DataGenConfig, checked before any work).
+INT_FLAG = number_flag(integer=True)
 
 
 def _add_scenario_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--town", help="town name (town03, town07, town10)")
     parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
     parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
-    parser.add_argument("--speed-kmh", type=float, help="cruise speed [km/h]")
-    parser.add_argument("--seed", type=int, help="random seed (start jitter)")
-    parser.add_argument("--physics-dt-s", type=float, help="physics step [s] (default 0.002)")
-    parser.add_argument("--control-dt-s", type=float, help="control and sensing period [s] (default 0.05)")
+    parser.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), help="cruise speed [km/h]")
+    parser.add_argument("--seed", type=SEED_FLAG, help="random seed (start jitter)")
+    parser.add_argument("--physics-dt-s", type=config_flag(LoopConfig, "physics_dt_s"), help="physics step [s] (default 0.002)")
+    parser.add_argument("--control-dt-s", type=config_flag(LoopConfig, "control_dt_s"), help="control and sensing period [s] (default 0.05)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override any config key, e.g. --set policy.baseline_brake=0.9 (repeatable)")
 
@@ -88,6 +89,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = _config_from_args(args)
+    from avsim.experiments.spec import check_run_names
+
+    check_run_names(config)  # every name and the sign texture, before the scene is built
     output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4)
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
@@ -102,7 +106,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address, batch=args.batch, everything=args.all)
+                    backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes)
     print((out / "report.md").read_text())
     print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
     return 0
@@ -111,7 +115,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from avsim.experiments.sweep import load_sweep, run_sweep
 
-    sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
+    sweep = load_sweep(args.file, yes=args.yes)  # checks the size, then every grid value, before anything runs
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch)
     print((out / "summary.md").read_text())
@@ -142,7 +146,7 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
             raise ConfigError("--strip needs --towns (e.g. --towns town07,town03,town10): it puts their front cameras side by side")
         paths = save_snapshot(config, args.dist_m, args.out)
     else:
-        towns = [t.strip() for t in args.towns.split(",") if t.strip()]
+        towns = args.towns  # a non-empty list of names (name_list_flag)
         for town in towns:
             TOWNS.get(town)  # every name checked before anything renders
         if not args.strip:
@@ -254,12 +258,12 @@ def _add_detector_commands(sub) -> None:
     dsub = detector.add_subparsers(dest="detector_command", required=True)
     data = dsub.add_parser("make-data", help="render labelled sign images (boxes from segmentation)")
     add_output_argument(data, "--out", kind=FOLDER, default="data/signs", help="dataset directory (default data/signs)")
-    data.add_argument("--train", type=int, default=6000, help="training images")
-    data.add_argument("--val", type=int, default=1000, help="validation images (held-out town seed and lighting)")
-    data.add_argument("--images-per-scene", type=int, default=25)
-    data.add_argument("--seed", type=int, default=0)
-    data.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
-    data.add_argument("--max-dist-m", type=float, default=80.0,
+    data.add_argument("--train", type=INT_FLAG, default=6000, help="training images")
+    data.add_argument("--val", type=INT_FLAG, default=1000, help="validation images (held-out town seed and lighting)")
+    data.add_argument("--images-per-scene", type=INT_FLAG, default=25)
+    data.add_argument("--seed", type=SEED_FLAG, default=0)
+    data.add_argument("--workers", type=INT_FLAG, default=min(2, os.cpu_count() or 1))
+    data.add_argument("--max-dist-m", type=number_flag(unit="m"), default=80.0,
                       help="farthest target sign [m] (default 80; 160 to measure the perception's range)")
     data.add_argument("--format", choices=("jsonl", "coco", "yolo"), default="jsonl",
                       help="labels: jsonl (default, read by detector train/eval), coco (annotations/instances_SPLIT.json) "
@@ -288,22 +292,16 @@ def _add_detector_commands(sub) -> None:
     evaluate.add_argument("--weights", default="", help="weights file (default: the shipped models/sign_detector.pt)")
     evaluate.add_argument("--data", default="data/signs", help="dataset directory (default data/signs)")
     evaluate.add_argument("--split", default="val", choices=("val", "train"))
-    evaluate.add_argument("--conf", type=float, default=0.5, help="confidence threshold for recall and false positives")
-    evaluate.add_argument("--limit", type=int, help="score only the first N images")
+    evaluate.add_argument("--conf", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
+                          help="confidence threshold for recall and false positives")
+    evaluate.add_argument("--limit", type=number_flag(1, None, integer=True), help="score only the first N images")
     add_output_argument(evaluate, "--out", kind=FOLDER, default="results/detector_eval", help="report directory")
     evaluate.add_argument("--no-progress", action="store_true", help="no progress bar")
     evaluate.set_defaults(func=_cmd_eval)
 
 
-class _OneLineErrors(argparse.ArgumentParser):
-    """argparse, with its own errors (an unknown flag, a bad int) in one line, as avsim's are."""
-
-    def error(self, message: str) -> typing.NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _OneLineErrors(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
+    parser = OneLineArgumentParser(prog="avsim", description="Closed-loop stop-sign attack and defence simulator on MuJoCo.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="drive one scenario and print its summary")
@@ -327,33 +325,35 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--all", action="store_true",
                      help="also every other experiment file: the sensitivity, the COCO network's closed loop and the "
                           "attack-success files (hours on 2 cores; the leaderboard is `avsim leaderboard`)")
-    rep.add_argument("--workers", type=int, help="runs at once: worker processes, or the local Ray cluster's CPUs "
+    rep.add_argument("--workers", type=WORKERS_FLAG, help="runs at once: worker processes, or the local Ray cluster's CPUs "
                                                   "(default: one per core); with --address, at most this many in flight")
     rep.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
-    rep.add_argument("--batch", type=int, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    rep.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     rep.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     rep.set_defaults(func=_cmd_reproduce)
 
     swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
                                        "and safety_map.png")
     swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
     add_output_argument(swp, "--out", kind=FOLDER, required=True, help="results folder")
-    swp.add_argument("--workers", type=int,
+    swp.add_argument("--workers", type=WORKERS_FLAG,
                      help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                           "with --address, at most this many runs in flight (default: the cluster's CPUs)")
     swp.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="local: a pool of processes on this machine (default); ray: Ray tasks, on a local "
                           "cluster or the one at --address (pip install 'avsim[ray]')")
-    swp.add_argument("--batch", type=int, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    swp.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     swp.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
     swp.set_defaults(func=_cmd_sweep)
 
     board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "
@@ -361,11 +361,11 @@ def build_parser() -> argparse.ArgumentParser:
     board.add_argument("file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
     add_output_argument(board, "--out", kind=FOLDER, default="results/leaderboard", help="results folder")
     board.add_argument("--quick", action="store_true", help="the file's quick subset (quick_seeds per place and scenario)")
-    board.add_argument("--workers", type=int,
+    board.add_argument("--workers", type=WORKERS_FLAG,
                        help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)")
     board.add_argument("--backend", choices=("local", "ray"), default="local",
                        help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
-    board.add_argument("--batch", type=int, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    board.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -373,8 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     _add_scenario_flags(snap)
-    snap.add_argument("--dist-m", type=float, default=30.0, help="front bumper to stop line [m]")
-    snap.add_argument("--towns", help="with --strip: comma-separated towns whose front cameras are put side by side")
+    snap.add_argument("--dist-m", type=number_flag(unit="m"), default=30.0, help="front bumper to stop line [m]")
+    snap.add_argument("--towns", type=name_list_flag(), help="with --strip: comma-separated towns whose front cameras are put side by side")
     snap.add_argument("--strip", action="store_true",
                       help="write PREFIX.png: the front camera of each of --towns, side by side at half size")
     add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png", ".png"), default="snapshot",
@@ -415,51 +415,22 @@ def iter_parsers(parser: argparse.ArgumentParser, name: str = "avsim") -> Iterat
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the `avsim` command line; returns the exit status (see the module docstring)."""
-    args = build_parser().parse_args(argv)
-    debug = bool(getattr(args, "debug", False))
     try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # argparse printed its one line (or --help); its status, as for any refusal
+        return exc.code if isinstance(exc.code, int) else 2
+
+    def command() -> int:
         check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
+        route_mujoco_warnings_to_log()  # its instability printout would precede the one-line PhysicsError
+        quiet_rust_logs()  # rerun's own lines about a full disk would precede the one-line OutputError
+        quiet_resource_tracker()  # a SIGKILLed batch leaves no multiprocessing warning on the terminal
         check_declared_outputs(args)  # before any work: a bad path never costs a finished run
         if getattr(args, "seed", None) is not None:  # every subcommand's --seed, one range
             check_seed(args.seed, "--seed")
         return args.func(args)
-    except Interrupted as exc:
-        return _report(f"avsim: interrupted; {exc}", exc.exit_code, debug)
-    except AvsimError as exc:
-        return _report(f"avsim: error: {exc}", exc.exit_code, debug)
-    except KeyboardInterrupt:
-        return _report("avsim: interrupted; every file is written whole or not at all, so none is half-written",
-                       Interrupted.exit_code, debug)
-    except OSError as exc:  # the machine's: a full disk, a folder removed under a running command
-        where = _save_traceback()
-        return _report(f"avsim: error: {exc.strerror or exc}" + (f": '{exc.filename}'" if exc.filename else "")
-                       + f" (full traceback in {where}, or rerun with --debug)", 1, debug)
-    except Exception as exc:  # noqa: BLE001 - the one place that turns a bug into one line and a file
-        where = _save_traceback()
-        return _report(f"avsim: internal error: {type(exc).__name__}: {_one_line(str(exc))} (a bug in avsim; "
-                       f"full traceback in {where}, or rerun with --debug)", 1, debug)
 
-
-def _report(message: str, status: int, debug: bool) -> int:
-    if debug:
-        traceback.print_exc()
-    print(_one_line(message), file=sys.stderr)
-    return status
-
-
-def _one_line(text: str) -> str:
-    return " ".join(line.strip() for line in text.splitlines() if line.strip())
-
-
-def _save_traceback() -> str:
-    """Write the exception being handled, with its traceback, to a new file in the temp folder; its path."""
-    try:
-        fd, path = tempfile.mkstemp(prefix="avsim-traceback-", suffix=".txt")
-        with os.fdopen(fd, "w") as handle:
-            handle.write(f"avsim {' '.join(sys.argv[1:])}\n\n{traceback.format_exc()}")
-        return path
-    except OSError:
-        return "nowhere (the temp folder is not writable)"
+    return run_guarded(command, prog="avsim", debug=bool(getattr(args, "debug", False)))
 
 
 if __name__ == "__main__":

@@ -10,9 +10,13 @@ import argparse
 from pathlib import Path
 
 from avsim.cli_overrides import parse_set
-from avsim.config import check_seed
+from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.outputs import FILE, FOLDER, add_output_argument
+from avsim.validation import config_flag, number_flag, number_list_flag
+
+SEED_FLAG = config_flag(ScenarioConfig, "seed")
+STEPS_FLAG = number_flag(1, 100_000, integer=True)
 
 
 def _cmd_attack_generate(args: argparse.Namespace) -> int:
@@ -45,8 +49,6 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
         ssim_floor = args.ssim_floor  # None: the method's own floor, or 0.7
         if ssim_floor is not None:
             check_ssim_floor(ssim_floor)
-        if not 0 < args.speed_kmh <= 200:
-            raise ConfigError(f"--speed-kmh must be in (0, 200], got {args.speed_kmh}")
         # The spec checks the camera names, so a bad one fails before anything is rendered.
         cameras = tuple(c.strip() for c in (args.cameras or "front").split(",") if c.strip())
         bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
@@ -75,9 +77,13 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     unknown = [d for d in detectors if d not in ("detector", "coco", "yolo")]
     if unknown or not detectors:
         raise ConfigError(f"--detectors takes detector, coco and/or yolo, comma-separated; got '{args.detectors}'")
-    if args.drives < 0:
-        raise ConfigError(f"--drives must be >= 0, got {args.drives}")
+    from avsim.world.towns import PLACEMENTS, TOWNS
+
     placements = tuple(p.strip() for p in args.placements.split(","))
+    # Every name of the plan is checked before the first render.
+    TOWNS.get(args.town)
+    for placement in (*placements, args.drive_placement):
+        PLACEMENTS.get(placement)
     threshold = SimConfig().policy.conf_threshold
     out = Path(args.out)
     reports, drive_bys = [], {}
@@ -99,10 +105,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
 
     if args.method not in BUDGET_KEY:
         raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
-    try:
-        budgets = [float(b) for b in args.budgets.split(",")]
-    except ValueError:
-        raise ConfigError(f"--budgets expects comma-separated numbers, e.g. 0.05,0.1,0.2; got '{args.budgets}'") from None
+    budgets = [float(b) for b in args.budgets]  # each in (0, 1] (number_list_flag)
     protocol = None
     if args.closed_loop:
         from avsim.attacks.budget_success import load_protocol
@@ -127,23 +130,23 @@ def add_attack_commands(sub) -> None:
     gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
                                         "default), coco (the COCO CenterNet port), yolo (YOLOv3-tiny), ensemble (detector "
                                         "and coco at once) or ensemble_all (all three at once)")
-    gen.add_argument("--seed", type=int)
-    gen.add_argument("--steps", type=int, help="optimisation steps (default: the method's)")
-    gen.add_argument("--views-per-step", type=int, help="EOT views per step (default: the method's)")
+    gen.add_argument("--seed", type=SEED_FLAG)
+    gen.add_argument("--steps", type=STEPS_FLAG, help="optimisation steps (default: the method's)")
+    gen.add_argument("--views-per-step", type=number_flag(1, 1000, integer=True), help="EOT views per step (default: the method's)")
     gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
     gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
     gen.add_argument("--cameras",
                      help="comma-separated cameras whose views the texture is optimised over: front, side "
                           "(default front; front,side is the adaptive attacker against the side-camera defence)")
-    gen.add_argument("--ssim-floor", type=float,
+    gen.add_argument("--ssim-floor", type=number_flag(0, 1, lo_open=True, hi_open=True),
                      help="camouflage budget: the saved PNG keeps at least this SSIM to the clean sign on its face "
                           "(default: the method's ssim_floor hyperparameter if it has one, else 0.7); the change is "
                           "scaled back until it does")
     gen.add_argument("--purify", help="attack through the input purification defence: jpeg or median, at the "
                                       "perception defaults (quality 75, 3 px kernel), by BPDA: the purifier runs "
                                       "in the forward pass and is the identity in the backward pass (default none)")
-    gen.add_argument("--speed-kmh", type=float, default=85.0,
+    gen.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), default=85.0,
                      help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
     gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",
                      help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
@@ -156,7 +159,7 @@ def add_attack_commands(sub) -> None:
     ev.add_argument("--detectors", default="detector",
                     help="comma-separated perceptions the drive-bys are measured under: detector, coco, yolo "
                          "(default detector)")
-    ev.add_argument("--drives", type=int, default=6,
+    ev.add_argument("--drives", type=number_flag(0, 10_000, integer=True), default=6,
                     help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
                          "0 skips them)")
     ev.add_argument("--drive-placement", default="standard", help="placement of the drive-bys (default standard)")
@@ -164,9 +167,10 @@ def add_attack_commands(sub) -> None:
     ev.set_defaults(func=_cmd_attack_eval)
     sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")
     sw.add_argument("--method", required=True)
-    sw.add_argument("--budgets", required=True, help="comma-separated budgets (eps, eps_peak or sticker area fraction)")
-    sw.add_argument("--steps", type=int, default=100, help="optimisation steps per budget")
-    sw.add_argument("--seed", type=int, default=0)
+    sw.add_argument("--budgets", required=True, type=number_list_flag(0, 1, lo_open=True),
+                    help="comma-separated budgets (eps, eps_peak or sticker area fraction), each in (0, 1]")
+    sw.add_argument("--steps", type=STEPS_FLAG, default=100, help="optimisation steps per budget")
+    sw.add_argument("--seed", type=SEED_FLAG, default=0)
     sw.add_argument("--weights", default="")
     sw.add_argument("--closed-loop", metavar="FILE",
                     help="also drive past every texture and the clean sign under this attack-success experiment "

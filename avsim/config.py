@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from avsim.errors import ConfigError
+from avsim.validation import check_ranges, ranged
 
 C = TypeVar("C")
 # Values of PerceptionConfig.coco_input (perception/coco/preprocess.py says what each does).
@@ -78,52 +79,41 @@ class ScenarioConfig:
     sign: str = "clean"
     # The junction's sign turned about its post [deg], positive to the right: 0 faces the car;
     # 60-90 faces the cross street, so the sign is visible but not for this car (no stop required).
-    sign_yaw_deg: float = 0.0
+    sign_yaw_deg: float = ranged(0.0, -90, 90, unit="deg")
     # Red sign-like props along the approach that are no traffic sign ("red_signs": red and white
     # round and hexagonal adverts of a stop sign's size, world/distractors.py), or "none".
     distractors: str = "none"
-    speed_kmh: float = 85.0  # cruise target
-    start_speed_kmh: float = 0.0  # the study starts from rest and accelerates
-    start_dist_m: float = 230.0  # front bumper to stop line at t = 0
-    seed: int = 0
+    speed_kmh: float = ranged(85.0, 0, 200, lo_open=True, unit="km/h")  # cruise target
+    start_speed_kmh: float = ranged(0.0, 0, 200, unit="km/h")  # the study starts from rest and accelerates
+    # Front bumper to stop line at t = 0 [m]; the approach road is 300 m long.
+    start_dist_m: float = ranged(230.0, 20, 300, unit="m", note="the approach road is 300 m")
+    seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
     # Seeds the town's scenery (building heights, trees, parked cars); fixed per study town.
-    layout_seed: int = 0
+    layout_seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
     # Seeded jitter of the start position [m]; varies runs of one scenario across seeds.
-    start_jitter_m: float = 2.0
-    sun_elevation_deg: float = 50.0
-    sun_azimuth_deg: float = 30.0
-    sun_intensity: float = 1.0  # scales the sun's diffuse light
+    start_jitter_m: float = ranged(2.0, 0, 10, unit="m")
+    sun_elevation_deg: float = ranged(50.0, 5, 90, unit="deg")
+    sun_azimuth_deg: float = ranged(30.0, -360, 360, unit="deg")
+    sun_intensity: float = ranged(1.0, 0.1, 2.0)  # scales the sun's diffuse light
     # Linear fog from fog_start_m to fog_end_m [m] of distance; fog_end_m = 0 means clear air.
-    fog_start_m: float = 0.0
-    fog_end_m: float = 0.0
+    fog_start_m: float = ranged(0.0, 0, 10000, unit="m")
+    fog_end_m: float = ranged(0.0, 0, 10000, unit="m")
     # Tyre-road friction coefficient (the tyre's peak): dry asphalt 0.9, wet 0.5-0.6, packed
     # snow about 0.2, ice about 0.1. It is the friction of MuJoCo's tyre-road contacts.
-    road_friction: float = 0.9
+    road_friction: float = ranged(0.9, 0.05, 1.5, note="dry 0.9, wet 0.5, snow 0.2")
     # Error of the car's HD map: its stop line lies this far beyond the real one along the road
     # [m] (negative: before it). Only map-reading policies (autopilot, map_prior) are affected.
-    map_stop_line_offset_m: float = 0.0
+    map_stop_line_offset_m: float = ranged(0.0, -50, 50, unit="m")
     # The map's failure modes: "missing_stop", the junction's stop is not on the map (needs a
     # stop in the world); "phantom_stop", the map lists a stop the world does not have (needs a
     # junction where no stop is required); "none", the map matches the world.
     map_error: str = "none"
 
     def __post_init__(self) -> None:
-        _require(0 < self.speed_kmh <= 200, f"scenario.speed_kmh must be in (0, 200], got {self.speed_kmh}")
-        _require(0 <= self.start_speed_kmh <= 200, f"scenario.start_speed_kmh must be in [0, 200], got {self.start_speed_kmh}")
-        _require(20 <= self.start_dist_m <= 300, f"scenario.start_dist_m must be in [20, 300] (the approach road is 300 m), got {self.start_dist_m}")
-        check_seed(self.seed, "scenario.seed")
-        check_seed(self.layout_seed, "scenario.layout_seed")
-        _require(0 <= self.start_jitter_m <= 10, f"scenario.start_jitter_m must be in [0, 10], got {self.start_jitter_m}")
-        _require(5 <= self.sun_elevation_deg <= 90, f"scenario.sun_elevation_deg must be in [5, 90], got {self.sun_elevation_deg}")
-        _require(0.1 <= self.sun_intensity <= 2.0, f"scenario.sun_intensity must be in [0.1, 2], got {self.sun_intensity}")
-        _require(-50 <= self.map_stop_line_offset_m <= 50,
-                 f"scenario.map_stop_line_offset_m must be in [-50, 50] m, got {self.map_stop_line_offset_m}")
-        _require(0.05 <= self.road_friction <= 1.5,
-                 f"scenario.road_friction must be in [0.05, 1.5] (dry 0.9, wet 0.5, snow 0.2), got {self.road_friction}")
+        check_ranges(self, "scenario")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
                  f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
         yaw = abs(self.sign_yaw_deg)
-        _require(yaw <= 90, f"scenario.sign_yaw_deg must be in [-90, 90], got {self.sign_yaw_deg}")
         _require(not SIGN_YAW_FACING_DEG < yaw < SIGN_YAW_NOT_OURS_DEG,
                  f"scenario.sign_yaw_deg must be within {SIGN_YAW_FACING_DEG:g} deg of 0 (a sign for this car) or at least "
                  f"{SIGN_YAW_NOT_OURS_DEG:g} deg (a sign for the cross street); {self.sign_yaw_deg} leaves open whom it is for")
@@ -150,46 +140,33 @@ class VehicleConfig:
     Mass and geometry live in models/car.xml; the road's friction is the scenario's.
     """
 
-    max_drive_torque_nm: float = 900.0  # per driven (rear) wheel
+    max_drive_torque_nm: float = ranged(900.0, 0, 20000, lo_open=True, unit="N m")  # per driven (rear) wheel
     # Total brake force at brake = 1 as a multiple of the car's weight. At 1.0 a brake command
     # b asks the tyres for b * 9.81 m/s^2, the a_max of the study's b = a / a_max law; on a dry
     # road the tyres give less than that, and the anti-lock controller takes over.
-    brake_force_at_full_g: float = 1.0
+    brake_force_at_full_g: float = ranged(1.0, 0, 3, lo_open=True, unit="g")
     # Share of the brake force on the front axle. Under a 0.9 g stop about two thirds of the
     # car's weight rests on the front wheels, so real cars bias their brakes forward.
-    brake_balance_front: float = 0.70
+    brake_balance_front: float = ranged(0.70, 0, 1)
     # Time for the hydraulics to build from no brake to full brake [s]; release is immediate.
-    brake_rise_time_s: float = 0.15
+    brake_rise_time_s: float = ranged(0.15, 0, 2, lo_open=True, unit="s")
     # Anti-lock brakes and traction control: each wheel's slip is held near abs_target_slip.
     abs_enabled: bool = True
     traction_control_enabled: bool = True
-    abs_target_slip: float = 0.10
+    abs_target_slip: float = ranged(0.10, 0.02, 0.5)
     # Body bounce: undamped ride frequency [Hz] and damping ratio of each corner's spring.
-    suspension_frequency_hz: float = 1.4
-    suspension_damping_ratio: float = 0.45
+    suspension_frequency_hz: float = ranged(1.4, 0.5, 4, unit="Hz", note="a sedan rides at 1.2-1.5")
+    suspension_damping_ratio: float = ranged(0.45, 0.05, 2)
     # Tyre friction against slip: flat up to the peak slip, then falling linearly to this share
     # of the road's friction for a locked wheel (avsim/vehicle/tyre.py).
-    tyre_peak_slip: float = 0.15
-    tyre_sliding_ratio: float = 0.75
-    rolling_resistance_coeff: float = 0.012
-    drag_area_m2: float = 0.65  # Cd * frontal area of a sedan (0.29 * 2.2 m^2)
-    air_density_kgpm3: float = 1.2
+    tyre_peak_slip: float = ranged(0.15, 0.02, 0.5)
+    tyre_sliding_ratio: float = ranged(0.75, 0.2, 1)
+    rolling_resistance_coeff: float = ranged(0.012, 0, 0.5)
+    drag_area_m2: float = ranged(0.65, 0, 20, unit="m^2")  # Cd * frontal area of a sedan (0.29 * 2.2 m^2)
+    air_density_kgpm3: float = ranged(1.2, 0, 5, unit="kg/m^3")
 
     def __post_init__(self) -> None:
-        for name in ("max_drive_torque_nm", "brake_force_at_full_g", "brake_rise_time_s"):
-            _require(getattr(self, name) > 0, f"vehicle.{name} must be > 0, got {getattr(self, name)}")
-        for name in ("rolling_resistance_coeff", "drag_area_m2", "air_density_kgpm3"):
-            _require(getattr(self, name) >= 0, f"vehicle.{name} must be >= 0, got {getattr(self, name)}")
-        _require(self.brake_force_at_full_g <= 3, f"vehicle.brake_force_at_full_g must be in (0, 3], got {self.brake_force_at_full_g}")
-        _require(self.brake_rise_time_s <= 2, f"vehicle.brake_rise_time_s must be in (0, 2] s, got {self.brake_rise_time_s}")
-        _require(0 <= self.brake_balance_front <= 1, f"vehicle.brake_balance_front must be in [0, 1], got {self.brake_balance_front}")
-        _require(0.02 <= self.abs_target_slip <= 0.5, f"vehicle.abs_target_slip must be in [0.02, 0.5], got {self.abs_target_slip}")
-        _require(0.5 <= self.suspension_frequency_hz <= 4,
-                 f"vehicle.suspension_frequency_hz must be in [0.5, 4] Hz (a sedan rides at 1.2-1.5), got {self.suspension_frequency_hz}")
-        _require(0.05 <= self.suspension_damping_ratio <= 2,
-                 f"vehicle.suspension_damping_ratio must be in [0.05, 2], got {self.suspension_damping_ratio}")
-        _require(0.02 <= self.tyre_peak_slip <= 0.5, f"vehicle.tyre_peak_slip must be in [0.02, 0.5], got {self.tyre_peak_slip}")
-        _require(0.2 <= self.tyre_sliding_ratio <= 1, f"vehicle.tyre_sliding_ratio must be in [0.2, 1], got {self.tyre_sliding_ratio}")
+        check_ranges(self, "vehicle")
 
 
 @dataclass(frozen=True)
@@ -200,11 +177,11 @@ class CameraConfig:
     17 px tall at 40 m.
     """
 
-    width_px: int = 640
-    height_px: int = 480
-    fovy_deg: float = 30.0
-    side_fovy_deg: float = 30.0
-    side_yaw_deg: float = 20.0  # towards the right-hand roadside
+    width_px: int = ranged(640, 64, 4096, unit="px")
+    height_px: int = ranged(480, 64, 4096, unit="px")
+    fovy_deg: float = ranged(30.0, 1, 150, unit="deg")
+    side_fovy_deg: float = ranged(30.0, 1, 150, unit="deg")
+    side_yaw_deg: float = ranged(20.0, -90, 90, unit="deg")  # towards the right-hand roadside
     # Multisampling costs about half the frame rate on llvmpipe; off by default.
     offsamples: int = 0
     # Segmentation is rendered at this multiple of the resolution so that
@@ -212,11 +189,7 @@ class CameraConfig:
     seg_supersample: int = 2
 
     def __post_init__(self) -> None:
-        _require(64 <= self.width_px <= 4096 and 64 <= self.height_px <= 4096,
-                 f"camera resolution must be 64..4096 px a side, got {self.width_px}x{self.height_px}")
-        for name in ("fovy_deg", "side_fovy_deg"):
-            _require(1 <= getattr(self, name) <= 150, f"camera.{name} must be in [1, 150], got {getattr(self, name)}")
-        _require(-90 <= self.side_yaw_deg <= 90, f"camera.side_yaw_deg must be in [-90, 90], got {self.side_yaw_deg}")
+        check_ranges(self, "camera")
         _require(self.offsamples in (0, 1, 2, 4, 8, 16), f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
         _require(self.seg_supersample in (1, 2, 3, 4), f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
 
@@ -235,19 +208,17 @@ def focal_length_px(height_px: int, fovy_deg: float) -> float:
 class LoopConfig:
     """Fixed time steps. Control and sensing run every `control_dt_s`; physics in between."""
 
-    physics_dt_s: float = 0.002
-    control_dt_s: float = 0.05  # 20 Hz, CARLA's synchronous default
-    max_time_s: float = 60.0
+    # Below 0.1 ms a control step would be over 1000 physics steps: no car needs it, and a
+    # tiny dt (1e-300) would make the step count absurd.
+    physics_dt_s: float = ranged(0.002, 1e-4, 0.01, unit="s")
+    control_dt_s: float = ranged(0.05, 0, 0.1, lo_open=True, unit="s", note="CARLA warns above 0.1 s")  # 20 Hz, CARLA's synchronous default
+    max_time_s: float = ranged(60.0, 0, 600, lo_open=True, unit="s")
 
     def __post_init__(self) -> None:
-        # Below 0.1 ms a control step would be over 1000 physics steps: no car needs it, and a
-        # tiny dt (1e-300) would make the step count absurd.
-        _require(1e-4 <= self.physics_dt_s <= 0.01, f"loop.physics_dt_s must be in [0.0001, 0.01] s, got {self.physics_dt_s}")
-        _require(0 < self.control_dt_s <= 0.1, f"loop.control_dt_s must be in (0, 0.1] (CARLA warns above 0.1 s), got {self.control_dt_s}")
+        check_ranges(self, "loop")
         ratio = self.control_dt_s / self.physics_dt_s
         _require(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1,
                  f"loop.control_dt_s ({self.control_dt_s}) must be a whole multiple of loop.physics_dt_s ({self.physics_dt_s})")
-        _require(0 < self.max_time_s <= 600, f"loop.max_time_s must be in (0, 600], got {self.max_time_s}")
 
     @property
     def substeps(self) -> int:
@@ -270,22 +241,22 @@ class PerceptionConfig:
     # A sensor-model knob for the learned detector: boxes shorter than this are dropped. The
     # default keeps every box the network reports; where to start acting on a far sign is the
     # policy's decision (policy.trigger_dist_m), not the perception's.
-    min_box_height_px: float = 1.0
+    min_box_height_px: float = ranged(1.0, 1, 4096, unit="px")
     # The oracle's range. A ground-truth box has no range of its own, so the oracle reports a
     # sign only once its box is this tall: calibrated to where the learned detector's clean
     # stop-sign recall on held-out renders falls below 0.5 (README, "Perception range").
-    oracle_min_box_height_px: float = ORACLE_MIN_BOX_HEIGHT_PX
+    oracle_min_box_height_px: float = ranged(ORACLE_MIN_BOX_HEIGHT_PX, 1, 4096, unit="px")
     # Detector weights file; "" means the shipped models/sign_detector.pt.
     weights_path: str = ""
     # The detector reports every box at least this confident. The policy's own
     # conf_threshold decides braking; lower-scored boxes are kept in the records
     # so a run shows what an attack left of the sign.
-    min_confidence: float = 0.1
+    min_confidence: float = ranged(0.1, 0, 1, lo_open=True, hi_open=True)
     # Torch intra-op threads for the detector. Part of the config because oneDNN splits a
     # convolution's sums by thread, so 1 and 2 threads differ in the last bits of a score:
     # a run is bit-identical only at the same count. One thread also lets a pool of
     # worker processes use every core without oversubscribing them.
-    threads: int = 1
+    threads: int = ranged(1, 1, 64)
     # `detector`: the arithmetic of the own network. "fp32" is what every table in the docs was
     # measured with; "bf16" runs its convolutions under bfloat16 autocast, about 1.5x faster here,
     # and lets the lock-step batch share one network call among cars (perception/detector/infer.py).
@@ -295,7 +266,7 @@ class PerceptionConfig:
     # Gaussian read noise added to every frame the detector sees [8-bit levels, 1 sigma]; the
     # pattern is drawn from scenario.seed, so seeds differ in their noise. The oracle reads
     # segmentation and has none.
-    sensor_noise_std: float = 0.0
+    sensor_noise_std: float = ranged(0.0, 0, 50, unit="levels")
     # Regions of interest (x0, y0, x1, y1) [px] of the front and side images: the detector
     # reports only boxes whose network cell centre lies inside, and runs its network on the
     # region plus `detector.roi.CONTEXT_PX` of context instead of the whole frame. Inside the
@@ -315,7 +286,7 @@ class PerceptionConfig:
     # over 10-45 m on 3000 make-data frames was 0.56 (upscale x2) against 0.33 (resize) and
     # 0.20 (crop) (`python -m avsim.perception.coco.realism`). It is also the slowest.
     coco_input: str = "upscale"
-    coco_upscale: float = 2.0
+    coco_upscale: float = ranged(2.0, 1, 4)
     # `coco`: the arithmetic of the network. "fp32" is the port checked against TF.js; "bf16"
     # runs a bfloat16 copy (perception/coco/bf16.py), faster (`avsim bench` times both), whose
     # scores differ from fp32's by bf16 rounding: on 3000 make-data frames its stop-sign recall
@@ -340,13 +311,13 @@ class PerceptionConfig:
     yolo_weights: str = ""
     yolo_names: str = ""
     yolo_input: str = "upscale"
-    yolo_upscale: float = 2.0
+    yolo_upscale: float = ranged(2.0, 1, 4)
     yolo_precision: str = "fp32"
     # Input purification before the network (a defence, perception/purify.py): "jpeg" re-compresses
     # each frame at purify_jpeg_quality, "median" median-blurs it with a purify_median_kernel_px
     # square kernel; "none" leaves it as rendered. Any pixel perception; not the oracle.
     purify: str = "none"
-    purify_jpeg_quality: int = 75
+    purify_jpeg_quality: int = ranged(75, 1, 100)
     purify_median_kernel_px: int = 3
     # `ensemble` (the own detector and the COCO CenterNet on the same frame, perception/ensemble.py):
     # "or" reports every detection of either network; "and" reports a stop sign only where both
@@ -355,29 +326,22 @@ class PerceptionConfig:
     # `ensemble`: its member networks, the first giving fused boxes (any of ENSEMBLE_NETWORKS, each
     # once, at least two), and for "k_of_n" fusion how many must report a stop sign on one object.
     ensemble_members: tuple[str, ...] = ("detector", "coco")
-    ensemble_k: int = 2
+    ensemble_k: int = ranged(2, 1, 3)
 
     def __post_init__(self) -> None:
+        check_ranges(self, "perception")
         for key in ("front_roi_px", "side_roi_px"):
             x0, y0, x1, y1 = getattr(self, key)
             _require(0 <= x0 < x1 and 0 <= y0 < y1,
                      f"perception.{key} must be [x0, y0, x1, y1] with 0 <= x0 < x1 and 0 <= y0 < y1 [px], got {list(getattr(self, key))}")
-        _require(0 <= self.sensor_noise_std <= 50, f"perception.sensor_noise_std must be in [0, 50] levels, got {self.sensor_noise_std}")
-        _require(1 <= self.threads <= 64, f"perception.threads must be in [1, 64], got {self.threads}")
-        _require(self.min_box_height_px >= 1, f"perception.min_box_height_px must be >= 1, got {self.min_box_height_px}")
-        _require(self.oracle_min_box_height_px >= 1,
-                 f"perception.oracle_min_box_height_px must be >= 1, got {self.oracle_min_box_height_px}")
-        _require(0 < self.min_confidence < 1, f"perception.min_confidence must be in (0, 1), got {self.min_confidence}")
         _require(self.detector_precision in DETECTOR_PRECISIONS,
                  f"perception.detector_precision must be one of {', '.join(DETECTOR_PRECISIONS)}, got {self.detector_precision!r}")
         _require(self.coco_input in COCO_INPUTS,
                  f"perception.coco_input must be one of {', '.join(COCO_INPUTS)}, got {self.coco_input!r}")
-        _require(1 <= self.coco_upscale <= 4, f"perception.coco_upscale must be in [1, 4], got {self.coco_upscale}")
         _require(self.coco_precision in COCO_PRECISIONS,
                  f"perception.coco_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.coco_precision!r}")
         _require(self.yolo_input in COCO_INPUTS,
                  f"perception.yolo_input must be one of {', '.join(COCO_INPUTS)}, got {self.yolo_input!r}")
-        _require(1 <= self.yolo_upscale <= 4, f"perception.yolo_upscale must be in [1, 4], got {self.yolo_upscale}")
         _require(self.yolo_precision in COCO_PRECISIONS,
                  f"perception.yolo_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.yolo_precision!r}")
         _require(bool(self.yolo_cfg) == bool(self.yolo_weights),
@@ -389,8 +353,6 @@ class PerceptionConfig:
         _require(self.kind != "oracle" or self.purify == "none",
                  "perception.purify works on pixels, and the oracle reads ground truth from the scene; choose a pixel "
                  "perception (detector, coco, yolo, ensemble, onnx) or perception.purify = none")
-        _require(1 <= self.purify_jpeg_quality <= 100,
-                 f"perception.purify_jpeg_quality must be in [1, 100], got {self.purify_jpeg_quality}")
         _require(self.purify_median_kernel_px in (3, 5, 7, 9),
                  f"perception.purify_median_kernel_px must be 3, 5, 7 or 9 (an odd square kernel), got {self.purify_median_kernel_px}")
         _require(self.ensemble_fusion in ENSEMBLE_FUSIONS,
@@ -412,64 +374,44 @@ class PolicyConfig:
     """Braking policy and its parameters (see avsim/control/policies.py)."""
 
     name: str = "baseline"
-    conf_threshold: float = 0.5  # a detection counts above this confidence
+    conf_threshold: float = ranged(0.5, 0, 1, lo_open=True, hi_open=True)  # a detection counts above this confidence
     # The braking gate: a perceiving policy acts on a stop sign only once its pinhole estimate of
     # the distance to the stop line is at most this [m]; 40 m is the study stack's gate. None (in
     # TOML `inf`, on the command line `none`) is no gate. The autopilot reads the map, not a gate.
-    trigger_dist_m: float | None = 40.0
-    baseline_brake: float = 0.85  # constant brake level of the `baseline` rule
-    brake_multiplier: float = 1.0  # M in b = min(a / a_max * M, 1)
-    a_max_mps2: float = 9.81
-    sign_height_m: float = 0.762  # H_real of the stop sign, flat to flat
+    trigger_dist_m: float | None = ranged(40.0, 0, 1000, lo_open=True, unit="m", note="or none for no gate")
+    baseline_brake: float = ranged(0.85, 0, 1, lo_open=True)  # constant brake level of the `baseline` rule
+    brake_multiplier: float = ranged(1.0, 0.6, 1.0)  # M in b = min(a / a_max * M, 1)
+    a_max_mps2: float = ranged(9.81, 1, 20, unit="m/s^2")
+    sign_height_m: float = ranged(0.762, 0.1, 3, unit="m")  # H_real of the stop sign, flat to flat
     # The sign height the study's stack assumes in its pinhole estimate (`study_stack` only).
-    study_sign_height_m: float = 1.0
+    study_sign_height_m: float = ranged(1.0, 0.1, 3, unit="m")
     # The road convention the policies assume: the stop line is this far before the sign.
-    stop_line_before_sign_m: float = 1.0
+    stop_line_before_sign_m: float = ranged(1.0, 0, 20, unit="m")
     # Distance the `adjusted` policy aims to stop short of the line. Its distance comes
     # from a box height, and 1 px of box error at 15 m is about 0.4 m of range, so it
     # keeps 2 m in hand; with 0.5 m a detected (not oracle) box ran 0.4 m past the sign.
-    stop_margin_m: float = 2.0
+    stop_margin_m: float = ranged(2.0, 0, 10, unit="m")
     # The autopilot knows the line from the map and aims this far short of it.
-    autopilot_stop_margin_m: float = 0.5
+    autopilot_stop_margin_m: float = ranged(0.5, 0, 10, unit="m")
     # The autopilot starts braking when stopping at the line needs this share of the car's
     # full-brake deceleration, measured at the run's road friction (avsim.vehicle.brake_test),
     # and maps a deceleration to a brake level with that measured figure.
-    autopilot_decel_fraction: float = 0.7
+    autopilot_decel_fraction: float = ranged(0.7, 0.1, 1)
     # `temporal_vote`: brake once a stop sign, tracked with the car's odometry, has been seen in
     # vote_k of the last vote_n frames at vote_conf_threshold or above (a lower per-frame threshold
     # than conf_threshold). Its pinhole range must shrink as the car advances: fitted over the
     # votes, range lost per metre driven within 1 +- vote_range_rate_tol, once the votes span at
     # least vote_min_travel_m of driving.
-    vote_conf_threshold: float = 0.3
-    vote_k: int = 3
-    vote_n: int = 5
-    vote_range_rate_tol: float = 0.5
-    vote_min_travel_m: float = 1.0
+    vote_conf_threshold: float = ranged(0.3, 0, 1, lo_open=True, hi_open=True)
+    vote_k: int = ranged(3, 1, 100)
+    vote_n: int = ranged(5, 1, 100)
+    vote_range_rate_tol: float = ranged(0.5, 0, 1, lo_open=True)
+    vote_min_travel_m: float = ranged(1.0, 0, 50, unit="m")
 
     def __post_init__(self) -> None:
-        _require(0 < self.conf_threshold < 1, f"policy.conf_threshold must be in (0, 1), got {self.conf_threshold}")
-        _require(0 < self.baseline_brake <= 1, f"policy.baseline_brake must be in (0, 1], got {self.baseline_brake}")
-        _require(0.6 <= self.brake_multiplier <= 1.0, f"policy.brake_multiplier (M) must be in [0.6, 1], got {self.brake_multiplier}")
-        # Decelerations up to 20 m/s^2 (about 2 g, a tyre friction of 2); sign heights 0.1-3 m.
-        _require(1 <= self.a_max_mps2 <= 20, f"policy.a_max_mps2 must be in [1, 20] m/s^2, got {self.a_max_mps2}")
-        _require(0.1 <= self.sign_height_m <= 3, f"policy.sign_height_m must be in [0.1, 3] m, got {self.sign_height_m}")
-        _require(0.1 <= self.study_sign_height_m <= 3,
-                 f"policy.study_sign_height_m must be in [0.1, 3] m, got {self.study_sign_height_m}")
-        _require(0 <= self.stop_line_before_sign_m <= 20,
-                 f"policy.stop_line_before_sign_m must be in [0, 20] m, got {self.stop_line_before_sign_m}")
-        _require(self.trigger_dist_m is None or 0 < self.trigger_dist_m <= 1000,
-                 f"policy.trigger_dist_m must be in (0, 1000] m, or none for no gate, got {self.trigger_dist_m}")
-        _require(0.1 <= self.autopilot_decel_fraction <= 1,
-                 f"policy.autopilot_decel_fraction must be in [0.1, 1], got {self.autopilot_decel_fraction}")
-        _require(0 <= self.stop_margin_m <= 10, f"policy.stop_margin_m must be in [0, 10], got {self.stop_margin_m}")
-        _require(0 <= self.autopilot_stop_margin_m <= 10,
-                 f"policy.autopilot_stop_margin_m must be in [0, 10], got {self.autopilot_stop_margin_m}")
-        _require(0 < self.vote_conf_threshold < 1, f"policy.vote_conf_threshold must be in (0, 1), got {self.vote_conf_threshold}")
-        _require(1 <= self.vote_k <= self.vote_n <= 100,
+        check_ranges(self, "policy")
+        _require(self.vote_k <= self.vote_n,
                  f"policy.vote_k and policy.vote_n must satisfy 1 <= vote_k <= vote_n <= 100, got {self.vote_k} and {self.vote_n}")
-        _require(0 < self.vote_range_rate_tol <= 1,
-                 f"policy.vote_range_rate_tol must be in (0, 1], got {self.vote_range_rate_tol}")
-        _require(0 <= self.vote_min_travel_m <= 50, f"policy.vote_min_travel_m must be in [0, 50] m, got {self.vote_min_travel_m}")
 
 
 @dataclass(frozen=True)
@@ -519,7 +461,7 @@ def _coerce(value: Any, annotation: Any, dotted: str) -> Any:
     for kind in expected:
         if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
             if not math.isfinite(value):
-                break
+                raise ConfigError(f"config key '{dotted}' must be a finite number, got {value!r}")
             return float(value)
         if kind in (int, str, bool) and type(value) is kind:
             return value

@@ -81,19 +81,26 @@ def declared_outputs(parser: argparse.ArgumentParser) -> tuple[OutputArg, ...]:
 
 
 def check_declared_outputs(args: argparse.Namespace) -> None:
-    """Check every output the parsed command declared (None: not asked for); raises OutputError."""
+    """Check every output the parsed command declared (None: not asked for); raises OutputError,
+    also when two outputs name one path (one would silently replace the other)."""
+    claimed: dict[Path, str] = {}  # resolved path -> the flag that writes it
     for spec in getattr(args, _DEFAULT_KEY, ()):
         value = getattr(args, spec.dest, None)
         if value is None:
             continue
         if spec.kind == FILE:
-            check_output_file(value, spec.flag, suffix=spec.suffix)
+            paths = [check_output_file(value, spec.flag, suffix=spec.suffix)]
             for companion in spec.companions:
-                check_output_file(str(Path(value).with_suffix(companion)), spec.flag)
+                paths.append(check_output_file(str(Path(value).with_suffix(companion)), spec.flag))
         elif spec.kind == FOLDER:
-            check_output_folder(value, spec.flag)
+            paths = [check_output_folder(value, spec.flag)]
         else:
-            check_output_prefix(value, spec.flag, spec.suffixes)
+            paths = check_output_prefix(value, spec.flag, spec.suffixes)
+        for path in paths:
+            key = path.resolve()
+            if key in claimed and claimed[key] != spec.flag:
+                raise OutputError(f"{claimed[key]} and {spec.flag} both write {path}; give each output its own path")
+            claimed[key] = spec.flag
 
 
 def check_output_file(path: str | os.PathLike, flag: str, *, suffix: str | None = None) -> Path:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from avsim.config import SimConfig
 from avsim.loop import ClosedLoop
 from avsim.metrics import RunResult, StepRecord
+from avsim.plausibility import check_meaningful
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class RunOutput:
 def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None,
                  mp4_path: str | os.PathLike | None = None) -> RunOutput:
     """Run `config` to the end, recording it to `rrd_path` (rerun) and `mp4_path` (video) if given."""
+    check_meaningful(config)  # a scenario that cannot mean what it says never runs
     start = time.perf_counter()
     loop = ClosedLoop(config)
     try:

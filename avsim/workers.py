@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 import time
 import typing
@@ -44,11 +45,26 @@ _watching: set[int] = set()
 _watch_lock = threading.Lock()
 
 
+# The filter, in `python -W` form, that keeps multiprocessing's resource tracker quiet about the
+# semaphores a SIGKILLed parent could not release: the tracker releases them, and its two-line
+# warning would follow whatever the killed command last printed.
+_TRACKER_FILTER = "ignore:resource_tracker:UserWarning"
+
+
+def quiet_resource_tracker() -> None:
+    """Pass `_TRACKER_FILTER` to the resource tracker process, which takes this interpreter's -W
+    options when a pool first starts it (call before the first pool)."""
+    if _TRACKER_FILTER not in sys.warnoptions:
+        sys.warnoptions.append(_TRACKER_FILTER)
+
+
 def init_worker(env: dict[str, str], parent_pid: int) -> None:
     """A pool's initializer: `env` into the environment (before any GL context), SIGINT ignored,
     and the parent watched."""
     os.environ.update(env)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):  # a closed terminal hangs up the whole group; the parent decides, as for Ctrl-C
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     # Not an exception: the pool's worker loop would catch it and carry on with the next task.
     signal.signal(signal.SIGTERM, lambda signum, frame: exit_now(TERMINATED_EXIT_STATUS))
     watch_parent(parent_pid)

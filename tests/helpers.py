@@ -6,6 +6,15 @@ would shadow a `from helpers import ...`.
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import pytest
+
 from avsim.config import SimConfig, with_overrides
 from avsim.experiments.run_task import RunSpec
 
@@ -28,3 +37,44 @@ def short_run_spec(cell: str, seed: int = 0, **sections) -> RunSpec:
     sections.setdefault("scenario", {})
     sections["scenario"] = {**SHORT_RUN, "seed": seed, **sections["scenario"]}
     return RunSpec("short", cell, seed, make_config(**sections))
+
+
+# ---- `avsim` as a separate process, for signal, lock and disk-limit tests ----------------------
+
+REPO = Path(__file__).resolve().parents[1]
+PROCESS_TIMEOUT_S = 120.0
+
+
+def start_avsim(argv: list[str], stderr: Path) -> subprocess.Popen:
+    """`python -m avsim ARGV` in its own process group (so a signal can go to the group, as Ctrl-C
+    does), stderr to a file. SIGINT's default action is restored in the child, as a terminal's
+    foreground process has it: a test session started in the background ignores SIGINT, and a
+    child inherits that."""
+    with stderr.open("wb") as err:
+        return subprocess.Popen([sys.executable, "-m", "avsim", *argv], cwd=REPO, stdout=subprocess.DEVNULL,
+                                stderr=err, start_new_session=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def wait_until(condition: Callable[[], bool], proc: subprocess.Popen, what: str, log: Path,
+               timeout_s: float = PROCESS_TIMEOUT_S) -> None:
+    """Poll `condition` until true; fail the test (showing `log`) if `proc` exits or time runs out first."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if proc.poll() is not None:
+            pytest.fail(f"avsim exited ({proc.returncode}) before {what}:\n{log.read_text()}")
+        if time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail(f"not {what} within {timeout_s} s")
+        time.sleep(0.02)
+
+
+def write_files(root: Path, files: Mapping[str, str | bytes], tmp: str) -> None:
+    """Make each {relative path: text or bytes} under `root`; "{tmp}" in a text becomes `tmp`."""
+    for name, content in files.items():
+        path = root / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content.replace("{tmp}", tmp))

@@ -17,6 +17,7 @@ import pytest
 import avsim.loop
 from avsim import cli
 from avsim.config import MAX_SEED
+from helpers import write_files
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
@@ -89,7 +90,7 @@ CASES = {
     # ---- values refused up front ----------------------------------------------------------------------------
     "snapshot --dist-m nan": Case(["snapshot", "--dist-m", "nan", "--out", "{tmp}/s"], "--dist-m"),
     "snapshot --dist-m 1e9": Case(["snapshot", "--dist-m", "1e9", "--out", "{tmp}/s"], "--dist-m"),
-    "--physics-dt-s 1e-300": Case(["run", *ORACLE, "--physics-dt-s", "1e-300"], "loop.physics_dt_s"),
+    "--physics-dt-s 1e-300": Case(["run", *ORACLE, "--physics-dt-s", "1e-300"], "--physics-dt-s: must be in [0.0001, 0.01] s"),
     "seed 2**64": Case(["run", *ORACLE, "--set", f"scenario.seed={2**64}"], "scenario.seed"),
     "seed 1e23": Case(["run", *ORACLE, "--set", "scenario.seed=100000000000000000000000"], str(MAX_SEED)),
     "--seed past 2**32 - 1": Case(["run", *ORACLE, "--seed", str(MAX_SEED + 1)], str(MAX_SEED)),
@@ -133,7 +134,7 @@ CASES = {
     "MUJOCO_GL=nonsense": Case(["run", *ORACLE], "egl", env={"MUJOCO_GL": "nonsense"}),
     "MUJOCO_GL=glfw (needs a display)": Case(["run", *ORACLE], "osmesa", env={"MUJOCO_GL": "glfw"}),
     # ---- argparse's own checks ----------------------------------------------------------------------------------
-    "--seed 1e23": Case(["run", "--seed", "1e23"], "invalid int value"),
+    "--seed 1e23": Case(["run", "--seed", "1e23"], "expects an integer"),
     "an unknown flag": Case(["snapshot", "--perception", "oracle"], "unrecognized arguments"),
 }
 
@@ -155,13 +156,7 @@ def _files_under(root: Path) -> set[str]:
 @pytest.mark.parametrize("case", list(CASES.values()), ids=list(CASES))
 def test_bad_input_is_one_line_and_writes_nothing(case, tmp_path, capsys, monkeypatch, no_simulation):
     tmp = str(tmp_path)
-    for name, content in case.files.items():
-        path = tmp_path / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(content, bytes):
-            path.write_bytes(content)
-        else:
-            path.write_text(content.replace("{tmp}", tmp))
+    write_files(tmp_path, case.files, tmp)
     for key, value in case.env.items():
         monkeypatch.setenv(key, value)
     monkeypatch.chdir(tmp_path)  # relative default outputs (results/, snapshot_*.png) land here too

@@ -13,8 +13,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -24,6 +22,7 @@ from avsim import cli
 from avsim.config import SimConfig, with_overrides
 from avsim.experiments.results_file import read_records
 from avsim.runner import run_config
+from helpers import start_avsim, wait_until
 
 REPO = Path(__file__).resolve().parents[1]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
@@ -31,27 +30,6 @@ TIMEOUT_S = 120.0
 # A short oracle run: 100 m from rest at 85 km/h, a few seconds of wall time.
 RUN_ARGS = ["--perception", "oracle", "--set", "scenario.start_dist_m=100"]
 ORPHAN_LIMIT_S = 10.0
-
-
-def _start(argv: list[str], stderr: Path) -> subprocess.Popen:
-    """`python -m avsim ARGV` in its own process group, so a signal can go to the group as Ctrl-C does."""
-    with stderr.open("wb") as err:
-        # SIGINT's default action restored in the child, as a terminal's foreground process has it: a test
-        # session started in the background (`nohup pytest &`) ignores SIGINT, and a child inherits that.
-        return subprocess.Popen([sys.executable, "-m", "avsim", *argv], cwd=REPO, stdout=subprocess.DEVNULL,
-                                stderr=err, start_new_session=True,
-                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-
-
-def _wait_until(condition, proc: subprocess.Popen, what: str, log: Path) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while not condition():
-        if proc.poll() is not None:
-            pytest.fail(f"avsim exited ({proc.returncode}) before {what}:\n{log.read_text()}")
-        if time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"not {what} within {TIMEOUT_S} s")
-        time.sleep(0.02)
 
 
 def _temporaries(folder: Path) -> list[str]:
@@ -95,8 +73,8 @@ def _oracle_result() -> dict:
 def test_ctrl_c_during_run_is_one_line_exit_130_and_nothing_written(tmp_path):
     outputs = ["--json", str(tmp_path / "a.json"), "--rrd", str(tmp_path / "a.rrd"), "--mp4", str(tmp_path / "a.mp4")]
     log = tmp_path.parent / f"{tmp_path.name}.err"
-    proc = _start(["run", *RUN_ARGS, *outputs], log)
-    _wait_until(lambda: len(_temporaries(tmp_path)) == 2, proc, "the recorders started", log)
+    proc = start_avsim(["run", *RUN_ARGS, *outputs], log)
+    wait_until(lambda: len(_temporaries(tmp_path)) == 2, proc, "the recorders started", log)
     os.killpg(proc.pid, signal.SIGINT)
     assert proc.wait(timeout=TIMEOUT_S) == 130
     err = log.read_text()
@@ -111,8 +89,8 @@ def test_ctrl_c_during_run_is_one_line_exit_130_and_nothing_written(tmp_path):
 def test_a_killed_runs_temporary_files_are_removed_by_the_next_run(tmp_path):
     outputs = ["--json", str(tmp_path / "a.json"), "--rrd", str(tmp_path / "a.rrd"), "--mp4", str(tmp_path / "a.mp4")]
     log = tmp_path.parent / f"{tmp_path.name}.err"
-    proc = _start(["run", *RUN_ARGS, *outputs], log)
-    _wait_until(lambda: len(_temporaries(tmp_path)) == 2, proc, "the recorders started", log)
+    proc = start_avsim(["run", *RUN_ARGS, *outputs], log)
+    wait_until(lambda: len(_temporaries(tmp_path)) == 2, proc, "the recorders started", log)
     time.sleep(0.5)  # some frames into each file
     proc.kill()  # SIGKILL: no cleanup, as the OOM killer does it
     proc.wait()
@@ -133,8 +111,8 @@ def test_ctrl_c_during_a_sweep_says_how_to_resume_and_resuming_gives_the_same_re
     out, log = tmp_path / "interrupted", tmp_path / "stderr.log"
     results = out / "results.jsonl"
     argv = ["sweep", str(SMOKE), "--out", str(out), "--workers", "2", "--no-progress"]
-    proc = _start(argv, log)
-    _wait_until(lambda: results.exists() and results.read_text().count("\n") >= 1, proc, "its first record", log)
+    proc = start_avsim(argv, log)
+    wait_until(lambda: results.exists() and results.read_text().count("\n") >= 1, proc, "its first record", log)
     workers = _children(proc.pid)
     os.killpg(proc.pid, signal.SIGINT)
     assert proc.wait(timeout=TIMEOUT_S) == 130
@@ -145,7 +123,7 @@ def test_ctrl_c_during_a_sweep_says_how_to_resume_and_resuming_gives_the_same_re
     assert _wait_gone(workers, 5.0) == []
     assert 1 <= len(read_records(results)) < 4
 
-    proc = _start([*argv, "--resume"], log)
+    proc = start_avsim([*argv, "--resume"], log)
     assert proc.wait(timeout=TIMEOUT_S) == 0, log.read_text()
     strip = lambda rs: [{k: v for k, v in r.items() if k != "wall_s"} for r in rs]  # noqa: E731
     assert strip(read_records(results)) == strip(expected)
@@ -164,13 +142,13 @@ perception = { kind = "oracle" }
 name = "clean sign, baseline"
 """)
     log, root = tmp_path / "stderr.log", tmp_path / "results"
-    proc = _start(["reproduce", "--experiments", str(experiment), "--workers", "2", "--no-progress", "--out", str(root)], log)
+    proc = start_avsim(["reproduce", "--experiments", str(experiment), "--workers", "2", "--no-progress", "--out", str(root)], log)
 
     def one_finished() -> bool:
         runs = list(root.glob("*/runs.jsonl"))
         return bool(runs) and runs[0].read_text().count("\n") >= 1
 
-    _wait_until(one_finished, proc, "its first run finished", log)
+    wait_until(one_finished, proc, "its first run finished", log)
     workers = _children(proc.pid)
     os.killpg(proc.pid, signal.SIGINT)
     assert proc.wait(timeout=TIMEOUT_S) == 130
@@ -187,7 +165,7 @@ def _kill_sweep_and_time_its_workers(tmp_path: Path, backend_args: list[str], wo
     sweep.write_text(SMOKE.read_text().replace('"scenario.speed_kmh" = [40, 60]', '"scenario.speed_kmh" = [40, 50, 60, 70]')
                      .replace("seeds = 1", "seeds = 4"))
     log = tmp_path / "stderr.log"
-    proc = _start(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--workers", "2", "--no-progress",
+    proc = start_avsim(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--workers", "2", "--no-progress",
                    *backend_args], log)
     found: list[int] = []
 
@@ -195,7 +173,7 @@ def _kill_sweep_and_time_its_workers(tmp_path: Path, backend_args: list[str], wo
         found[:] = worker_pids(proc.pid)
         return len(found) >= 2
 
-    _wait_until(running, proc, "two workers were running", log)
+    wait_until(running, proc, "two workers were running", log)
     time.sleep(2.0)  # into their runs
     proc.kill()
     proc.wait()

@@ -38,14 +38,16 @@ import torch.nn.functional as F
 from avsim.attacks.base import AttackResult
 from avsim.attacks.budget import SSIM_FLOOR, linf, ssim, within_ssim
 from avsim.attacks.eot import EotScene
+from avsim.attacks.hyperparameters import check_hyperparameter_values
 from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC, PhotometricRanges
 from avsim.attacks.registry import ATTACKS
 from avsim.attacks.sign_view import face_alpha
 from avsim.attacks.targets import TARGET_NAMES, build_target, purified, sha256_file
 from avsim.attacks.view_bank import ViewBankSpec, build_view_bank, closed_loop_bank_spec
-from avsim.config import PerceptionConfig
+from avsim.config import PerceptionConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.metrics import write_json_atomic
+from avsim.validation import Range, check_finite_tree
 from avsim.perception.detector.weights import resolve_weights_path
 from avsim.perception.detector.weights import load_weights
 from avsim.world.signs import SIGN_SHAPES
@@ -207,6 +209,7 @@ def check_hyperparameters(method: str, seed: int, hyperparameters: dict[str, Any
         inspect.signature(attack_class).bind(None, seed=seed, **hyperparameters)
     except TypeError as exc:
         raise ConfigError(f"bad hyperparameters for attack '{method}' ({exc}); see avsim/attacks/{method}.py") from None
+    check_hyperparameter_values(method, attack_class, hyperparameters)
 
 
 def check_ssim_floor(ssim_floor: float) -> None:
@@ -307,14 +310,18 @@ def _dataclass_from(kind, values: dict[str, Any], where: str):
     unknown = sorted(set(values) - set(names))
     if unknown:
         raise ConfigError(f"{where}: unknown keys {', '.join(unknown)}")
-    return kind(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+    try:
+        return kind(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+    except (TypeError, ValueError) as exc:  # a string where a number belongs, a list of the wrong length
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def read_recipe(json_path: str | os.PathLike) -> Recipe:
     """The recipe in a texture's JSON record; a one-line ConfigError if it is not one."""
     path = Path(json_path)
     try:
-        record = json.loads(path.read_text())
+        record = json.loads(path.read_text(encoding="utf-8"))
+        check_finite_tree(record, f"--from {path}")  # JSON's NaN and Infinity, which Python's json accepts
         method, seed, hyper = record["method"], record["seed"], dict(record["hyperparameters"])
         bank = {k: v for k, v in record["view_bank"].items() if k not in ("views", "views_by_camera")}
         photometric = record.get("photometric", {})
@@ -322,6 +329,12 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         purify = dict(record.get("purify", {}))
     except FileNotFoundError:
         raise ConfigError(f"--from {path}: no such file; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"--from {path}: not a texture record (not UTF-8 text); give the JSON written beside a texture") from None
+    except IsADirectoryError:
+        raise ConfigError(f"--from {path} is a folder; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
+    except OSError as exc:
+        raise ConfigError(f"--from {path}: cannot read it ({exc.strerror})") from None
     except (json.JSONDecodeError, KeyError, TypeError, AttributeError) as exc:
         raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` ({exc!r})") from None
     if "weights_sha256" not in record:
@@ -330,18 +343,25 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         raise ConfigError(f"--from {path}: this record was written by the generator before the drive-by rework "
                           "(it names no weights_sha256) and today's generator cannot replay it; make a new texture "
                           f"with `avsim attack generate --method {method} --out NEW.png`")
+    if not isinstance(method, str) or not isinstance(detector, str):
+        raise ConfigError(f"--from {path}: method and detector must be names, got {method!r} and {detector!r}")
+    check_seed(seed, f"--from {path}: seed")
     if detector not in TARGET_NAMES:
         raise ConfigError(f"--from {path}: unknown detector {detector!r}; choose one of: {', '.join(TARGET_NAMES)}")
-    check_hyperparameters(method, seed, hyper)
+    try:
+        check_hyperparameters(method, seed, hyper)
+    except ConfigError as exc:
+        raise ConfigError(f"--from {path}: {exc}") from None
     try:
         purify_config(purify)
     except ConfigError as exc:
         raise ConfigError(f"--from {path}: purify: {exc}") from None
     hashes = dict(record["weights_sha256"])
+    ssim_floor = Range(0, 1, lo_open=True, hi_open=True).check(record.get("ssim_floor", SSIM_FLOOR), f"--from {path}: ssim_floor")
+    threads = Range(1, 64, integer=True).check(record.get("torch_threads", DEFAULT_THREADS), f"--from {path}: torch_threads")
     return Recipe(method, seed, hyper, detector, _dataclass_from(ViewBankSpec, bank, f"--from {path}: view_bank"),
                   _dataclass_from(PhotometricRanges, photometric, f"--from {path}: photometric"),
-                  float(record.get("ssim_floor", SSIM_FLOOR)), int(record.get("torch_threads", DEFAULT_THREADS)), hashes,
-                  purify)
+                  float(ssim_floor), threads, hashes, purify)
 
 
 def check_weights(recipe: Recipe, weights_path: str = "") -> None:

@@ -32,8 +32,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from avsim.boundary import run_guarded
 from avsim.experiments.batch import run_batch
 from avsim.experiments.run_task import RunSpec
+from avsim.validation import OneLineArgumentParser, number_flag
 
 SMOKE_SWEEP = Path(__file__).resolve().parents[2] / "experiments" / "sweeps" / "sweep_smoke.toml"
 _MIB = 1024 * 1024
@@ -179,11 +181,19 @@ def bench_specs(seeds: int) -> list[RunSpec]:
     return dataclasses.replace(load_sweep(SMOKE_SWEEP), seeds=seeds).specs()
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m avsim.experiments.bench_sweep", description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=2, help="seeds per grid point of the smoke sweep (4 runs each)")
+PROG = "python -m avsim.experiments.bench_sweep"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = OneLineArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=number_flag(1, 1000, integer=True), default=2,
+                        help="seeds per grid point of the smoke sweep (4 runs each)")
     parser.add_argument("--no-ray", action="store_true", help="only the local pool")
     args = parser.parse_args(argv)
+    return run_guarded(lambda: _bench(args), prog=PROG)
+
+
+def _bench(args: argparse.Namespace) -> int:
 
     specs = bench_specs(args.seeds)
     print(f"sweep throughput: {len(specs)} runs ({SMOKE_SWEEP.name} grid x {args.seeds} seeds, oracle perception)")
@@ -207,7 +217,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         extra_s = ray.start_s + ray.wall_s - two.wall_s
         print(f"  Ray overhead vs local pool   {extra_s:+6.1f} s      ({100 * extra_s / two.wall_s:+.0f}% of the pool's "
               f"{two.wall_s:.1f} s; {extra_s / ray.runs:+.2f} s per run)")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -55,6 +55,7 @@ from typing import Any
 
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
+from avsim.experiments.plan_size import MAX_RUNS
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
@@ -280,8 +281,9 @@ def _parse_availability(path: Path, index: int, raw: Any, defence_names: set[str
 
 def _seeds(table: Mapping[str, Any]) -> tuple[int, int]:
     seeds, quick = table.get("seeds", 1), table.get("quick_seeds", 0)
-    if type(seeds) is not int or seeds < 1 or type(quick) is not int or not 0 <= quick <= seeds:
-        raise ConfigError(f"'seeds' must be an integer >= 1 and 'quick_seeds' one in 0 .. seeds, got {seeds!r} and {quick!r}")
+    if type(seeds) is not int or not 1 <= seeds <= MAX_RUNS or type(quick) is not int or not 0 <= quick <= seeds:
+        raise ConfigError(f"'seeds' must be an integer >= 1 (at most {MAX_RUNS:,}) and 'quick_seeds' one in 0 .. seeds, "
+                          f"got {seeds!r} and {quick!r}")
     return seeds, quick
 
 

@@ -19,6 +19,7 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.leaderboard import Leaderboard, unique_specs
 from avsim.experiments.leaderboard_report import write_leaderboard_report
+from avsim.experiments.output_lock import locked_output
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.metrics import write_json_atomic
 
@@ -30,9 +31,17 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     it writes there); returns `out_dir`."""
     check_backend(backend, address)
     out = Path(out_dir)
+    workers = resolve_workers(workers, address)
+    # One command at a time in `out`; a folder made here and left without a record is removed.
+    with locked_output(out, f"avsim leaderboard {board.path} --out {out}", results_name=RESULTS_FILE):
+        return _run_leaderboard_locked(board, out, quick=quick, workers=workers, resume=resume, progress=progress,
+                                       backend=backend, address=address)
+
+
+def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, workers: int | None, resume: bool,
+                            progress: bool, backend: str, address: str | None) -> Path:
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-    workers = resolve_workers(workers, address)
     runs = board.runs(quick)
     specs = unique_specs(board, runs)
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",

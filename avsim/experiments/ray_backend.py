@@ -33,6 +33,8 @@ import contextlib
 import itertools
 import os
 import socket
+import subprocess
+import sys
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -69,6 +71,31 @@ def check_reachable(address: str, timeout_s: float = 5.0) -> None:
     except OSError as exc:
         raise ConfigError(f"no Ray cluster answers at '{address}' ({exc.strerror or exc}); start one with "
                           "'ray start --head' or fix --address") from None
+    _check_ray_answers(address, RAY_CONNECT_TIMEOUT_S)
+
+
+# A port that accepts connections may still be no Ray cluster (another service, a cluster
+# that is starting or broken), and then `ray.init` retries for a minute, logging as it goes,
+# with no timeout of its own (ray-project/ray#46863). So a child process connects first, its
+# output captured, and is given this long [s]; a live cluster answers in a few seconds.
+RAY_CONNECT_TIMEOUT_S = 10.0
+_PROBE = ("import logging, sys, ray; ray.init(address=sys.argv[1], logging_level=logging.ERROR, log_to_driver=False, "
+          "include_dashboard=False); ray.shutdown()")
+
+
+def _check_ray_answers(address: str, timeout_s: float) -> None:
+    """A one-line ConfigError unless `ray.init(address)` succeeds in a child process within `timeout_s`."""
+    try:
+        probe = subprocess.run([sys.executable, "-c", _PROBE, address], capture_output=True, text=True,
+                               timeout=timeout_s, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise ConfigError(f"no Ray cluster answers at '{address}' within {timeout_s:g} s (something listens on "
+                          "the port, but Ray does not connect); check the address and that the cluster is up "
+                          "(`ray status`)") from None
+    if probe.returncode != 0:
+        lines = [line.strip() for line in probe.stderr.splitlines() if line.strip()]
+        raise ConfigError(f"no Ray cluster answers at '{address}' ({lines[-1] if lines else 'ray.init failed'}); "
+                          "check the address and that the cluster is up (`ray status`)")
 
 
 @contextlib.contextmanager

@@ -28,6 +28,8 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, run_batch, software_versions
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.run_task import RunSpec
+from avsim.experiments.output_lock import locked_output
+from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
 
@@ -43,16 +45,21 @@ MORE_EXPERIMENTS = ("sensitivity", "coco_detector", "attacks/success_town07", "a
                     "attacks/success_coco_towns", "attacks/sensitivity_coco_town10")
 
 
-def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False) -> list[Experiment]:
+def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,
+               yes: bool = False) -> list[Experiment]:
     """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
-    experiment file); `quick` keeps one seed per cell."""
+    experiment file); `quick` keeps one seed per cell. yes: allow a plan of more than
+    `plan_size.RUNS_WITHOUT_YES` runs (counted before any run is built)."""
     names = STUDY_EXPERIMENTS + (MORE_EXPERIMENTS if everything else ())
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in names]
     experiments = [load_experiment(path) for path in paths]
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
-    return [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
+    experiments = [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
+    runs = sum(len(e.cells) * e.seeds for e in experiments)
+    check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
+    return experiments
 
 
 def specs_for(experiments: list[Experiment], out_dir: Path) -> list[RunSpec]:
@@ -71,34 +78,42 @@ def slug(name: str) -> str:
 
 
 def _fresh_dir(root: Path, stamp: str) -> Path:
+    """A folder name under `root` that does not exist yet (made by `locked_output`)."""
     out = root / stamp
     suffix = 1
     while out.exists():
         suffix += 1
         out = root / f"{stamp}_{suffix}"
-    out.mkdir(parents=True)
     return out
 
 
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
-              address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False) -> Path:
+              address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
 
     backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
     the experiment files and `workers`, before the results folder is made.
     """
-    from avsim.experiments.report import write_report
-
     if everything and experiment_paths:
         raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
-    experiments = load_study(experiment_paths, quick, everything)
+    experiments = load_study(experiment_paths, quick, everything, yes)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
     out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
+    # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no folder.
+    with locked_output(out, "avsim reproduce", results_name="runs.jsonl"):
+        return _reproduce_into(out, experiments, quick=quick, workers=workers, progress=progress, backend=backend,
+                               address=address, started=started, started_at=started_at)
+
+
+def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, workers: int | None, progress: bool,
+                    backend: str, address: str | None, started: float, started_at: dt.datetime) -> Path:
+    from avsim.experiments.report import write_report
+
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     specs = specs_for(experiments, out)

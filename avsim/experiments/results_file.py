@@ -1,7 +1,8 @@
 """JSON-lines results files that survive crashes: one record per line, each flushed to disk.
 
-Each record is written as one `write` of a complete line, then flushed and fsynced, so a
-crash can leave at most a torn *last* line; `read_records` skips such a line (it is a run
+Each record is written as one complete line, then fsynced; a write that fails (a full disk,
+a file-size limit) is cut back to the last whole line at once, and a crash can leave at most
+a torn *last* line; `read_records` skips such a line (it is a run
 that never finished) and reads every complete one. Anything else that is not a run record
 is refused in one line, never skipped: a corrupt line in the middle (named by its number),
 or a file that is not avsim's at all (its first line is not a run record). A run record is
@@ -22,7 +23,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from avsim.errors import ConfigError
+from avsim.errors import ConfigError, OutputError
+from avsim.experiments.record_schema import record_field_problem
 from avsim.metrics import ALL_OUTCOMES, classify_outcome, write_text_atomic
 
 RECORD_KEYS = ("experiment", "cell", "seed", "spec_hash", "status")
@@ -43,14 +45,34 @@ class JsonlWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
 
     def append(self, record: dict[str, Any]) -> None:
+        """Append `record` as one line and fsync it; on a failed write (a full disk, a file-size
+        limit) the file is cut back to its last whole line and an OutputError names it."""
         line = encode(record).encode()
-        # O_APPEND: the line lands whole at the end even if another writer appended meanwhile.
+        # O_APPEND: the line lands at the end. One writer per folder (`output_lock`), so the
+        # length before the write is where a failed write is cut back to.
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
         try:
-            os.write(fd, line)
-            os.fsync(fd)
+            whole = os.fstat(fd).st_size
+            try:
+                written = 0
+                while written < len(line):  # a write near a file-size limit can be short
+                    written += os.write(fd, line[written:])
+                os.fsync(fd)
+            except OSError as exc:
+                _cut_back(fd, whole)
+                raise OutputError(f"cannot append to {self.path} ({exc.strerror or exc}); it keeps every "
+                                  "whole record written before") from None
         finally:
             os.close(fd)
+
+
+def _cut_back(fd: int, length: int) -> None:
+    """Truncate the file to `length` bytes (its last whole line), so no torn record remains."""
+    try:
+        os.ftruncate(fd, length)
+        os.fsync(fd)
+    except OSError:
+        pass  # the torn tail is then dropped by the next read (`read_records`) and resume
 
 
 def read_records(path: str | os.PathLike) -> list[dict[str, Any]]:
@@ -71,7 +93,7 @@ def read_records(path: str | os.PathLike) -> list[dict[str, Any]]:
     for number, line in enumerate(text.splitlines(keepends=True), 1):
         if not line.endswith("\n"):
             break  # torn by a crash mid-write: that run did not finish
-        problem = None
+        problem, record = None, None
         try:
             record = json.loads(line)
         except ValueError as exc:
@@ -79,7 +101,8 @@ def read_records(path: str | os.PathLike) -> list[dict[str, Any]]:
         else:
             problem = _record_problem(record)
         if problem is not None:
-            if number == 1:
+            looks_ours = isinstance(record, dict) and all(key in record for key in RECORD_KEYS)
+            if number == 1 and not looks_ours:
                 raise _foreign(path, f"its first line is {problem}")
             raise ConfigError(f"{path} line {number} is corrupt ({problem}); delete that line to resume "
                               f"(its run is run again), or choose another --out")
@@ -102,7 +125,7 @@ def _record_problem(record: Any) -> str | None:
     if record["status"] == "ok" and result["outcome"] in LEGACY_OUTCOMES and not all(
             key in result for key in ("margin_m", "sign_margin_m", "dist_at_brake_m")):
         return "an ok record whose result lacks its distances"
-    return None
+    return record_field_problem(record)
 
 
 def _foreign(path: Path, why: str) -> ConfigError:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from avsim.errors import ConfigError, Interrupted
+from avsim.errors import ConfigError, Interrupted, OutputError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import run_batch
 from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
@@ -68,14 +68,16 @@ def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequen
     def on_record(record: Record) -> None:
         if decorate is not None:
             record = decorate(record)
+        writer.append(record)  # first: a record that could not be written is not counted as kept
         ran[record["spec_hash"]] = record
-        writer.append(record)
 
     try:
         run_batch(todo, workers=workers, root=results_path.parent, on_record=on_record, progress=progress,
                   description=description, backend=backend, address=address, batch=batch)
     except KeyboardInterrupt:
         raise Interrupted(resume_hint(resume_command, results_path, len(finished) + len(ran))) from None
+    except OutputError as exc:  # a full disk: the file holds whole records only, so a resume loses none
+        raise OutputError(f"{exc}; {resume_hint(resume_command, results_path, len(finished) + len(ran))}") from None
     records = [ran.get(h) or finished[h] for h in hashes]
     others = [r for r in existing if r.get("spec_hash") not in wanted]
     rewrite(results_path, records + others)

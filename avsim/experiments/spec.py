@@ -43,6 +43,7 @@ import numpy as np
 
 from avsim.config import NO_SIGN, SimConfig, with_overrides
 from avsim.errors import AvsimError, ConfigError
+from avsim.experiments.plan_size import MAX_RUNS
 
 TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary", "cells")
 # The section `avsim reproduce` writes for an experiment, declared by the file (`report = "..."`),
@@ -160,8 +161,8 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
     if not isinstance(title, str):
         raise ConfigError(f"{path}: 'title' must be a string, got {title!r}")
     seeds = raw.get("seeds", default_seeds)
-    if type(seeds) is not int or seeds < 1:
-        raise ConfigError(f"{path}: 'seeds' must be an integer >= 1, got {seeds!r}")
+    if type(seeds) is not int or not 1 <= seeds <= MAX_RUNS:
+        raise ConfigError(f"{path}: 'seeds' must be an integer >= 1 (and at most {MAX_RUNS:,}), got {seeds!r}")
     return raw, title, seeds
 
 
@@ -245,6 +246,7 @@ def check_registry_names(config: SimConfig) -> None:
     # Imported here: the registries pull in the world, control and perception packages.
     from avsim.control.policies import POLICIES
     from avsim.perception.factory import PERCEPTIONS
+    from avsim.plausibility import check_meaningful
     from avsim.world.towns import PLACEMENTS, TOWNS
 
     for key, registry, name in (("scenario.town", TOWNS, config.scenario.town),
@@ -256,6 +258,7 @@ def check_registry_names(config: SimConfig) -> None:
                 registry.get(name)
             except ConfigError as exc:
                 raise ConfigError(f"{key}: {exc}") from None
+    check_meaningful(config)
 
 
 def check_run_names(config: SimConfig) -> Path | None:

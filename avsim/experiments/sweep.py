@@ -45,6 +45,7 @@ from __future__ import annotations
 import datetime as dt
 import itertools
 import json
+import math
 import os
 import shutil
 import time
@@ -57,6 +58,8 @@ from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.output_lock import locked_output
+from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
@@ -103,10 +106,20 @@ class Sweep:
     def name(self) -> str:
         return self.path.stem
 
+    @property
+    def size(self) -> int:
+        """The number of runs: grid points x seeds, computed without building any."""
+        return math.prod(len(values) for _, values in self.grid) * self.seeds
+
     def points(self) -> list[dict[str, Scalar]]:
         """Every combination of grid values; the first key varies slowest."""
+        return list(self.iter_points())
+
+    def iter_points(self) -> Iterator[dict[str, Scalar]]:
+        """`points`, one at a time."""
         keys = [key for key, _ in self.grid]
-        return [dict(zip(keys, values)) for values in itertools.product(*(values for _, values in self.grid))]
+        for values in itertools.product(*(values for _, values in self.grid)):
+            yield dict(zip(keys, values))
 
     def config_at(self, point: Mapping[str, Scalar], seed: int) -> SimConfig:
         overrides: dict[str, Any] = {"scenario": {"seed": seed}}
@@ -116,11 +129,21 @@ class Sweep:
 
     def runs(self) -> list[SweepRun]:
         """Every grid point at seeds 0 .. seeds-1, point by point."""
-        return [SweepRun(point, seed, self.config_at(point, seed)) for point in self.points() for seed in range(self.seeds)]
+        return list(self.iter_runs())
+
+    def iter_runs(self) -> Iterator[SweepRun]:
+        """`runs`, one at a time: each config is built when it is asked for."""
+        for point in self.iter_points():
+            for seed in range(self.seeds):
+                yield SweepRun(point, seed, self.config_at(point, seed))
+
+    def spec_of(self, run: SweepRun) -> RunSpec:
+        """A run as a batch spec: experiment = the sweep's name, cell = the point's label; no recording."""
+        return RunSpec(self.name, run.label, run.seed, run.config)
 
     def specs(self) -> list[RunSpec]:
-        """The runs as batch specs: experiment = the sweep's name, cell = the point's label; no recording."""
-        return [RunSpec(self.name, run.label, run.seed, run.config) for run in self.runs()]
+        """Every run as a batch spec (`spec_of`)."""
+        return [self.spec_of(run) for run in self.iter_runs()]
 
 
 def point_label(point: Mapping[str, Scalar]) -> str:
@@ -129,8 +152,11 @@ def point_label(point: Mapping[str, Scalar]) -> str:
 
 # ---- loading ---------------------------------------------------------------------------------
 
-def load_sweep(path: str | os.PathLike) -> Sweep:
-    """Read and check a sweep file; see the module docstring for its format."""
+def load_sweep(path: str | os.PathLike, *, yes: bool = False) -> Sweep:
+    """Read and check a sweep file; see the module docstring for its format.
+
+    yes: allow more than `plan_size.RUNS_WITHOUT_YES` runs (the user's --yes); the size is
+    checked before any combination is built."""
     path = Path(path)
     raw, title, seeds = read_run_file(path, "sweep", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
 
@@ -142,8 +168,9 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     with located(path, "[grid]"):
         grid = _parse_grid(raw.get("grid"), base)
     sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid)
+    check_plan_size(sweep.size, f"{path}: {sweep.size // seeds:,} grid points x {seeds:,} seeds", yes=yes)
     # Each value is valid alone; check every combination too (limits that tie two keys together).
-    for point in sweep.points():
+    for point in sweep.iter_points():
         with located(path, f"[grid] point {point_label(point)}"):
             sweep.config_at(point, 0)
     return sweep
@@ -212,19 +239,30 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     workers: runs at once (default: one per core; on a Ray cluster at `address`, the cluster's
     CPUs). backend, address, batch: see `avsim.experiments.batch.run_batch`.
     Raises ConfigError, writing nothing, when `out_dir` already holds results and `resume` is
-    off, or the backend cannot run (Ray not installed).
+    off, the backend cannot run (Ray not installed), or another command holds `out_dir`.
     """
-    from avsim.experiments.sweep_report import write_sweep_report
-
     check_backend(backend, address)
     out = Path(out_dir)
+    workers = resolve_workers(workers, address)
+    # One command at a time in `out`; a folder made here and left without a record is removed.
+    with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
+        return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
+                                 address=address)
+
+
+def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: bool, progress: bool, backend: str,
+                      address: str | None) -> Path:
+    from avsim.experiments.sweep_report import write_sweep_report
+
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-    workers = resolve_workers(workers, address)
 
-    runs = sweep.runs()
-    specs = sweep.specs()
-    point_of = {spec.spec_hash: run.point for spec, run in zip(specs, runs)}
+    # One pass over the runs, each config built once (the plan's size was checked when it was loaded).
+    specs, point_of = [], {}
+    for run in sweep.iter_runs():
+        spec = sweep.spec_of(run)
+        specs.append(spec)
+        point_of[spec.spec_hash] = run.point
     if len(point_of) != len(specs):
         raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
 

@@ -31,8 +31,9 @@ import cv2
 import mujoco
 import numpy as np
 
-from avsim.config import CameraConfig, SimConfig, check_seed, with_overrides
+from avsim.config import MAX_SEED, CameraConfig, SimConfig, with_overrides
 from avsim.errors import ConfigError
+from avsim.validation import check_ranges, ranged
 from avsim.outputs import write_image, write_text
 from avsim.perception.dataset_formats import FORMATS, SPLITS, write_labels
 from avsim.sensors.camera import CameraRig
@@ -53,29 +54,23 @@ IMAGE_SIZE_PX = (CameraConfig().width_px, CameraConfig().height_px)
 
 @dataclass(frozen=True)
 class DataGenConfig:
-    n_train: int = 6000
-    n_val: int = 1000
-    images_per_scene: int = 25
-    seed: int = 0
-    workers: int = 2
+    n_train: int = ranged(6000, 0, 10_000_000)
+    n_val: int = ranged(1000, 0, 10_000_000)
+    images_per_scene: int = ranged(25, 1, 1000)
+    seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
+    workers: int = ranged(2, 1, 64)
     # Farthest target sign [m]. 80 m covers the braking range; the perception-range
     # measurement (README) renders out to 160 m, where the sign is 4 px tall.
-    max_dist_m: float = 80.0
+    max_dist_m: float = ranged(80.0, 10, 300, unit="m", note="the approach road is 320 m long")
     # How the labels are written: "jsonl" (avsim's own), "coco" or "yolo" (dataset_formats).
     label_format: str = "jsonl"
 
     def __post_init__(self) -> None:
         if self.label_format not in FORMATS:
             raise ConfigError(f"--format must be one of {', '.join(FORMATS)}, got {self.label_format!r}")
-        if self.n_train < 0 or self.n_val < 0 or self.n_train + self.n_val == 0:
+        check_ranges(self, "make-data")
+        if self.n_train + self.n_val == 0:
             raise ConfigError(f"need a positive number of images, got train={self.n_train}, val={self.n_val}")
-        if not 1 <= self.images_per_scene <= 1000:
-            raise ConfigError(f"images_per_scene must be in [1, 1000], got {self.images_per_scene}")
-        if not 1 <= self.workers <= 64:
-            raise ConfigError(f"workers must be in [1, 64], got {self.workers}")
-        if not 10.0 <= self.max_dist_m <= 300.0:
-            raise ConfigError(f"--max-dist-m must be in [10, 300] m (the approach road is 320 m long), got {self.max_dist_m}")
-        check_seed(self.seed, "seed")
 
 
 @dataclass(frozen=True)

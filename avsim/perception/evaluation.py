@@ -17,14 +17,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from avsim.config import CameraConfig
 from avsim.control.pinhole import pinhole_distance_m
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
-from avsim.perception.detector.data import split_path
+from avsim.perception.detector.data import DatasetError, parse_line, read_rgb, split_lines
 from avsim.stats import wilson_interval
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60), (60, 80), (80, 100), (100, 120), (120, 140),
@@ -76,14 +75,25 @@ def _bin_name(lo: float, hi: float) -> str:
     return f"{lo}-{hi} m"
 
 
+def _eval_record(line: str, where: str, data_dir: Path) -> dict:
+    """One labels line as the evaluation reads it, checked as training checks it (`parse_line`),
+    plus the camera it was rendered by; a one-line DatasetError naming FILE:LINE."""
+    parse_line(line, where, data_dir, SIGN_CLASSES)
+    record = json.loads(line)
+    camera = record.get("meta", {}).get("camera") if isinstance(record.get("meta"), dict) else None
+    if not isinstance(camera, str):
+        raise DatasetError(f"{where} has no meta.camera (the camera the image was rendered by); regenerate the dataset")
+    return record
+
+
 def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split: str = "val",
              limit: int | None = None, progress: bool = True) -> EvalReport:
     """Run `detect(image_rgb, camera)` (all detections, any score) over a split and score it."""
     from tqdm import tqdm
 
     data_dir = Path(data_dir)
-    records = [json.loads(line) for line in split_path(data_dir, split).read_text().splitlines()]
-    records = records[:limit] if limit else records
+    records = [_eval_record(line, where, data_dir) for where, line in split_lines(data_dir, split)]
+    records = records[:limit] if limit is not None else records
     tallies = {cls: _ClassTally() for cls in SIGN_CLASSES}
     f_px = CameraConfig().f_px
     per_bin_conf: dict[str, list[float]] = {_bin_name(*b): [] for b in DIST_BINS_M}
@@ -91,7 +101,7 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
     per_bin_pinhole: dict[str, list[float]] = {_bin_name(*b): [] for b in DIST_BINS_M}
     false_positives, n_empty = 0, 0
     for record in tqdm(records, desc=f"evaluating {split}", disable=not progress):
-        image = cv2.imread(str(data_dir / record["image"]))[..., ::-1]
+        image = read_rgb(data_dir / record["image"])
         detections = detect(np.ascontiguousarray(image), record["meta"]["camera"])
         gt_boxes = np.asarray(record["boxes"], dtype=float).reshape(-1, 4)
         gt_classes = record["classes"]

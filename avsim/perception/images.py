@@ -10,27 +10,20 @@ import cv2
 import numpy as np
 
 from avsim.config import PerceptionConfig
-from avsim.errors import AvsimError
+from avsim.image_files import ImageError, check_image_file, decode_image
 from avsim.perception.factory import build_frame_detector
-
-
-class ImageError(AvsimError):
-    """An image file that does not exist or cannot be decoded."""
 
 
 def _check_readable(paths: list[Path]) -> None:
     for path in paths:
-        if not path.is_file():
-            raise ImageError(f"image {path} does not exist; pass image files (PNG, JPEG, ...)")
+        check_image_file(path)  # a folder, a missing file, a decompression bomb: one line
         if not cv2.haveImageReader(str(path)):
             raise ImageError(f"{path} is not an image OpenCV can read; pass PNG, JPEG or another common format")
 
 
 def read_rgb(path: Path) -> np.ndarray:
     """(H, W, 3) uint8 RGB of an image file (grey and alpha images are converted)."""
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if image is None:
-        raise ImageError(f"{path} cannot be decoded as an image; pass PNG, JPEG or another common format")
+    image = decode_image(check_image_file(path), path, cv2.IMREAD_COLOR)
     return np.ascontiguousarray(image[..., ::-1])
 
 

@@ -43,7 +43,7 @@ import numpy as np
 import rerun as rr
 
 from avsim.control.policies import STOP_CLASS
-from avsim.errors import ConfigError
+from avsim.errors import ConfigError, OutputError
 from avsim.loop import ClosedLoop
 from avsim.metrics import StepRecord
 from avsim.outputs import temporary_path
@@ -155,9 +155,15 @@ class RunRecorder:
             self._set_time(self._steps, self._pending.time_s)
             self._log_frame(self._pending)
             self._log_detections(())  # no perception ran on the final state
-            self._rec.flush()
-            self._rec.disconnect()  # writes the footer and closes the file
-            os.replace(self._tmp_path, self._path)
+            try:
+                self._rec.flush()
+                self._rec.disconnect()  # writes the footer and closes the file
+                os.replace(self._tmp_path, self._path)
+            except Exception as exc:
+                # rerun's file writer runs in a thread and reports a full disk (or a file-size
+                # limit) only as "shut down prematurely" at the flush: said here in the user's terms.
+                raise OutputError(f"cannot write {self._path}: the recording could not be finished "
+                                  f"({_one_line(exc)}); is the disk full?") from None
         except BaseException:
             self.abort()
             raise
@@ -251,3 +257,8 @@ class RunRecorder:
             value = getattr(record, field)
             if value is not None and math.isfinite(value):
                 self._log(paths.metric(field), rr.Scalars(float(value)))
+
+
+def _one_line(exc: BaseException) -> str:
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    return lines[0] if lines else type(exc).__name__

@@ -13,14 +13,15 @@ brake requested to the first at which the car's speed is below STOPPED_SPEED_MPS
 
 from __future__ import annotations
 
-import argparse
 import functools
 import math
 from dataclasses import dataclass
 
 import mujoco
 
-from avsim.config import VehicleConfig
+from avsim.boundary import run_guarded
+from avsim.config import ScenarioConfig, VehicleConfig
+from avsim.validation import OneLineArgumentParser, config_flag
 from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
 from avsim.vehicle.physics import Controls, Vehicle
 from avsim.vehicle.suspension import GRAVITY_MPS2
@@ -115,13 +116,22 @@ def _table(speed_kmh: float) -> str:
     return "\n".join(rows)
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description="Full-brake stops of the avsim car on dry, wet and snowy roads.")
-    parser.add_argument("--speed-kmh", type=float, default=85.0)
+PROG = "python -m avsim.vehicle.brake_test"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = OneLineArgumentParser(prog=PROG, description="Full-brake stops of the avsim car on dry, wet and snowy roads.")
+    # The closed loop's speed range (scenario.speed_kmh): NaN, 0 or a negative speed is no brake test.
+    parser.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), default=85.0)
     args = parser.parse_args(argv)
-    print(f"Full brake from {args.speed_kmh:g} km/h, straight, default vehicle config")
-    print(_table(args.speed_kmh))
+
+    def command() -> int:
+        print(f"Full brake from {args.speed_kmh:g} km/h, straight, default vehicle config")
+        print(_table(args.speed_kmh))
+        return 0
+
+    return run_guarded(command, prog=PROG)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from avsim.errors import TextureError
+from avsim.image_files import c_stderr_silenced
 from avsim.outputs import write_bytes_atomic
 
 TEXTURE_DIR = Path(__file__).resolve().parents[2] / "textures"
@@ -233,6 +234,8 @@ def load_texture_png(path: str | os.PathLike, expected_aspect: float | None = No
     (< 32 px) or too large (> 4096 px) file, or a wrong aspect ratio.
     """
     p = Path(path)
+    if p.is_dir():
+        raise TextureError(f"texture {p} is a folder; {_PNG_HINT}, e.g. a file in it")
     if not p.is_file():
         raise TextureError(f"texture {p} does not exist; check the path or run "
                            f"`python -m avsim.world.textures` to regenerate the clean ones")
@@ -249,7 +252,8 @@ def load_texture_png(path: str | os.PathLike, expected_aspect: float | None = No
     # libpng may hand back a partial image for a truncated file; a complete PNG ends in IEND.
     if b"IEND" not in data[-12:]:
         raise TextureError(f"texture {p} is a truncated PNG; re-export it, {_PNG_HINT}")
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    with c_stderr_silenced():  # libpng's own warnings would make a one-line refusal several
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise TextureError(f"texture {p} is a corrupt PNG that cannot be decoded; re-export it, "
                            f"{_PNG_HINT}")

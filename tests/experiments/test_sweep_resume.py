@@ -19,6 +19,7 @@ import pytest
 
 from avsim import cli
 from avsim.experiments.results_file import read_records
+from helpers import wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
@@ -39,14 +40,7 @@ def _complete_lines(path: Path) -> list[str]:
 
 
 def _wait_for_lines(proc: subprocess.Popen, path: Path, count: int, log: Path) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while len(_complete_lines(path)) < count:
-        if proc.poll() is not None:
-            pytest.fail(f"the sweep exited ({proc.returncode}) before writing {count} records:\n{log.read_text()}")
-        if time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"no {count} records within {TIMEOUT_S} s")
-        time.sleep(0.01)
+    wait_until(lambda: len(_complete_lines(path)) >= count, proc, f"writing {count} records", log, TIMEOUT_S)
 
 
 def _kill(proc: subprocess.Popen) -> None:

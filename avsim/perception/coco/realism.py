@@ -32,7 +32,6 @@ Writes OUT/frames.jsonl (one line per frame and mode) and OUT/report.md, and pri
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -44,6 +43,7 @@ import numpy as np
 
 from avsim.config import COCO_INPUTS, COCO_PRECISIONS, PerceptionConfig
 from avsim.errors import ConfigError
+from avsim.validation import OneLineArgumentParser, config_flag, number_flag
 from avsim.perception.ap import box_iou, match_detections
 from avsim.stats import wilson_interval
 
@@ -285,16 +285,17 @@ def compare_precisions(rows: list[dict]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m avsim.perception.coco.realism", description=__doc__.split("\n\n")[0])
+    parser = OneLineArgumentParser(prog="python -m avsim.perception.coco.realism", description=__doc__.split("\n\n")[0])
     parser.add_argument("--network", choices=tuple(NETWORKS), default="coco", help="coco (default) or yolo")
     parser.add_argument("--data", nargs="+", required=True, help="datasets written by `avsim detector make-data`")
     parser.add_argument("--modes", default=",".join(COCO_INPUTS), help="comma-separated perception.<network>_input values")
     parser.add_argument("--precisions", help="comma-separated perception.<network>_precision values (default: the "
                                              "config's); fp32 among several is the reference")
-    parser.add_argument("--threshold", type=float, default=0.5, help="confidence that counts (the braking threshold)")
-    parser.add_argument("--upscale", type=float, help="perception.<network>_upscale for the upscale mode (default: the config's)")
-    parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
-    parser.add_argument("--limit", type=int, help="only the first N frames")
+    parser.add_argument("--threshold", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5, help="confidence that counts (the braking threshold)")
+    parser.add_argument("--upscale", type=config_flag(PerceptionConfig, "coco_upscale"),
+                        help="perception.<network>_upscale for the upscale mode (default: the config's)")
+    parser.add_argument("--workers", type=number_flag(1, 64, integer=True), default=min(2, os.cpu_count() or 1))
+    parser.add_argument("--limit", type=number_flag(1, None, integer=True), help="only the first N frames")
     parser.add_argument("--out", help="output folder (default results/<network>_realism)")
     args = parser.parse_args(argv)
     defaults = PerceptionConfig()

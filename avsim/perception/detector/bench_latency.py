@@ -17,8 +17,10 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from avsim.boundary import run_guarded
 from avsim.perception.detector.infer import DEFAULT_CONF_THRESHOLD
 from avsim.perception.detector.letterbox import letterbox
+from avsim.validation import OneLineArgumentParser, number_flag
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE, build_detector, count_macs
 from avsim.perception.detector.postprocess import decode
 from avsim.perception.detector.weights import load_weights
@@ -62,12 +64,17 @@ def benchmark(model: torch.nn.Module, input_size: tuple[int, int], runs: int, co
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m avsim.perception.detector.bench_latency", description=__doc__.splitlines()[0])
+    prog = "python -m avsim.perception.detector.bench_latency"
+    parser = OneLineArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--weights", help="trained weights (default: randomly initialised build_detector())")
-    parser.add_argument("--runs", type=int, default=50)
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--conf", type=float, default=DEFAULT_CONF_THRESHOLD)
+    parser.add_argument("--runs", type=number_flag(1, 100_000, integer=True), default=50)
+    parser.add_argument("--threads", type=number_flag(1, 64, integer=True), default=2)
+    parser.add_argument("--conf", type=number_flag(0, 1, lo_open=True, hi_open=True), default=DEFAULT_CONF_THRESHOLD)
     args = parser.parse_args(argv)
+    return run_guarded(lambda: _bench(args), prog=prog)
+
+
+def _bench(args: argparse.Namespace) -> int:
     torch.set_num_threads(args.threads)
     if args.weights:
         model, meta = load_weights(args.weights)

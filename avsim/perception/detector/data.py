@@ -22,6 +22,7 @@ import torch
 from torch.utils.data import Dataset
 
 from avsim.errors import AvsimError
+from avsim.image_files import ImageError, check_image_file, decode_image
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.augment import AugmentConfig, clip_boxes, jitter_letterbox, photometric
 from avsim.perception.detector.letterbox import fit, to_tensor, warp
@@ -43,7 +44,7 @@ class Record:
     classes: np.ndarray
 
 
-def _parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, ...]) -> Record:
+def parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, ...]) -> Record:
     try:
         obj = json.loads(line)
         image, boxes, classes = obj["image"], obj["boxes"], obj["classes"]
@@ -84,16 +85,31 @@ def read_records(data_dir: str | Path, split: str, class_names: tuple[str, ...] 
     if split not in SPLITS:
         raise DatasetError(f"unknown split '{split}'; expected one of {', '.join(SPLITS)}")
     data_dir = Path(data_dir)
+    return [parse_line(line, where, data_dir, class_names) for where, line in split_lines(data_dir, split)]
+
+
+def split_lines(data_dir: str | Path, split: str) -> list[tuple[str, str]]:
+    """("FILE:LINE", text) of every non-blank line of the split's labels; a one-line DatasetError
+    for a labels file that is not UTF-8 text or cannot be read."""
     path = split_path(data_dir, split)
-    lines = path.read_text().splitlines()
-    return [_parse_line(line, f"{path}:{n}", data_dir, class_names) for n, line in enumerate(lines, 1) if line.strip()]
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(f"{path} is not a labels file (byte {exc.start} is not UTF-8 text); point --data at a "
+                           "dataset made by `avsim detector make-data`") from None
+    except OSError as exc:
+        raise DatasetError(f"cannot read {path} ({exc.strerror})") from None
+    return [(f"{path}:{n}", line) for n, line in enumerate(text.splitlines(), 1) if line.strip()]
 
 
 def read_rgb(path: Path) -> np.ndarray:
     """(H, W, 3) uint8 RGB image from a PNG (OpenCV reads BGR)."""
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if image is None:
+    if not path.is_file():
         raise DatasetError(f"image {path} is missing or unreadable; regenerate the dataset")
+    try:
+        image = decode_image(check_image_file(path), path, cv2.IMREAD_COLOR)
+    except ImageError as exc:  # too large (a decompression bomb), or not an image
+        raise DatasetError(f"{exc}; regenerate the dataset") from None
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 

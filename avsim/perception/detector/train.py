@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,10 +30,12 @@ from torch import nn
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from avsim.boundary import run_guarded
 from avsim.errors import AvsimError, ConfigError, Interrupted
 from avsim.outputs import check_declared_outputs
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.data import SignDataset, collate
+from avsim.perception.detector.device import check_device
 from avsim.perception.detector.ema import ModelEMA
 from avsim.perception.ap import mean_ap
 from avsim.perception.detector.train_args import add_train_arguments
@@ -42,6 +43,7 @@ from avsim.perception.detector.evaluate import evaluate_map50
 from avsim.perception.detector.loss import LossWeights, compute_loss
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE, build_detector
 from avsim.perception.detector.weights import load_checkpoint, save_checkpoint
+from avsim.validation import OneLineArgumentParser
 
 LOSS_TERMS = ("obj", "cls", "box", "total")
 RESUME_KEYS = ("arch", "input_size", "seed", "epochs", "batch_size", "lr")
@@ -196,6 +198,7 @@ def run_from_args(args: argparse.Namespace) -> int:
     width, sep, height = str(args.input_size).lower().partition("x")
     if not sep or not width.isdigit() or not height.isdigit():
         raise ConfigError(f"--input-size expects WxH, e.g. 640x480, got '{args.input_size}'")
+    check_device(args.device)  # a device this torch build lacks is one line, before the data is read
     try:
         result = train(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                        resume=args.resume, input_size=(int(width), int(height)), log_every=args.log_every,
@@ -209,15 +212,16 @@ def run_from_args(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m avsim.perception.detector.train", description=__doc__.splitlines()[0])
+    prog = "python -m avsim.perception.detector.train"
+    parser = OneLineArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     add_train_arguments(parser)
     args = parser.parse_args(argv)
-    try:
+
+    def command() -> int:
         check_declared_outputs(args)  # --out, before any work, as `avsim detector train` checks it
         return run_from_args(args)
-    except AvsimError as exc:
-        print(f"avsim: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+
+    return run_guarded(command, prog=prog)
 
 
 if __name__ == "__main__":

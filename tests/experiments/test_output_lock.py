@@ -1,0 +1,112 @@
+"""One command per results folder (`avsim.experiments.output_lock`), and what a failed start leaves."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from avsim import cli
+from avsim.errors import OutputError
+from avsim.experiments.output_lock import LOCK_NAME, locked_output
+from avsim.experiments.results_file import read_records
+
+REPO = Path(__file__).resolve().parents[2]
+SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
+
+
+def test_a_second_holder_is_refused_naming_the_first(tmp_path):
+    with locked_output(tmp_path / "out", "avsim sweep first.toml"):
+        with pytest.raises(OutputError) as refused:
+            with locked_output(tmp_path / "out", "avsim sweep second.toml"):
+                pass
+    message = str(refused.value)
+    assert "\n" not in message and f"pid {os.getpid()}" in message and "first.toml" in message
+    with locked_output(tmp_path / "out", "avsim sweep third.toml"):  # released: free again
+        pass
+
+
+def _hold_and_wait(folder: str, ready) -> None:
+    with locked_output(folder, "a process about to be killed"):
+        ready.set()
+        time.sleep(60)
+
+
+def test_the_lock_of_a_killed_process_is_taken_over(tmp_path):
+    context = multiprocessing.get_context("spawn")
+    ready = context.Event()
+    holder = context.Process(target=_hold_and_wait, args=(str(tmp_path / "out"), ready))
+    holder.start()
+    assert ready.wait(60)
+    with pytest.raises(OutputError, match="in use by pid"):
+        with locked_output(tmp_path / "out", "while it lives"):
+            pass
+    os.kill(holder.pid, signal.SIGKILL)  # no clean-up: the lock file stays, naming a dead pid
+    holder.join()
+    assert (tmp_path / "out" / LOCK_NAME).exists()
+    with locked_output(tmp_path / "out", "after it died") as folder:
+        assert f"pid {os.getpid()}" in (folder / LOCK_NAME).read_text()
+
+
+def test_a_folder_made_for_a_start_that_failed_is_removed(tmp_path):
+    with pytest.raises(RuntimeError):
+        with locked_output(tmp_path / "new", "a failing start", results_name="results.jsonl"):
+            raise RuntimeError("the cluster cannot be reached")
+    assert not (tmp_path / "new").exists()
+    # A folder that was there before, or that holds a finished run, stays.
+    (tmp_path / "old").mkdir()
+    with pytest.raises(RuntimeError):
+        with locked_output(tmp_path / "old", "a failing start", results_name="results.jsonl"):
+            raise RuntimeError
+    assert (tmp_path / "old").is_dir()
+    with pytest.raises(RuntimeError):
+        with locked_output(tmp_path / "kept", "a failing batch", results_name="results.jsonl") as folder:
+            (folder / "results.jsonl").write_text("{}\n")
+            raise RuntimeError
+    assert (tmp_path / "kept" / "results.jsonl").exists() and not (tmp_path / "kept" / LOCK_NAME).exists()
+
+
+@pytest.mark.slow  # about 20 s: one smoke sweep, with a second started into its folder
+def test_a_second_sweep_into_the_same_folder_is_refused_and_the_first_finishes_intact(tmp_path):
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]
+    first = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while not (out / "results.jsonl").exists():  # the first holds the folder and has begun its runs
+        assert first.poll() is None and time.monotonic() < deadline, first.stderr.read().decode()
+        time.sleep(0.05)
+    second = subprocess.run([*argv, "--resume"], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert second.returncode == 2 and len(second.stderr.splitlines()) == 1, second.stderr
+    assert "in use by pid" in second.stderr and str(first.pid) in second.stderr
+    assert first.wait(timeout=300) == 0, first.stderr.read().decode()
+    records = read_records(out / "results.jsonl")
+    assert len(records) == 4 and all(r["status"] == "ok" for r in records)
+    assert len({r["spec_hash"] for r in records}) == 4
+    assert not (out / LOCK_NAME).exists()
+
+
+@pytest.mark.slow  # about 12 s: Ray's import and the 10 s connect timeout
+def test_an_address_that_answers_but_is_no_ray_cluster_is_one_line_within_seconds(tmp_path, capsys):
+    pytest.importorskip("ray")
+    import socket
+
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(8)  # accepts connections and says nothing, as a non-Ray service would to Ray
+    try:
+        started = time.monotonic()
+        code = cli.main(["sweep", str(SMOKE), "--backend", "ray", "--address", f"127.0.0.1:{listener.getsockname()[1]}",
+                         "--out", str(tmp_path / "out"), "--no-progress"])
+        elapsed_s = time.monotonic() - started
+    finally:
+        listener.close()
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and "no Ray cluster answers" in err, err
+    assert elapsed_s < 30
+    assert not (tmp_path / "out").exists()

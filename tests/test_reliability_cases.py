@@ -1,0 +1,235 @@
+"""Issue 26, by class: bad input that used to reach an internal error, meaningless runs that used
+to be accepted, and checks that came too late. Every case is refused before any work: exit 2, at
+most two lines on stderr, nothing on stdout, and no file or folder left behind.
+
+The cases differ from the ones the issue lists (those are the classes' known members; these
+check that the mechanism, not a patch, covers the class). `no_simulation` fails the test if a
+closed loop is even built, and `no_view_bank` if an attack renders its view bank.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+import avsim.attacks.view_bank
+import avsim.loop
+from avsim import cli
+from helpers import write_files
+
+REPO = Path(__file__).resolve().parents[1]
+SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
+ORACLE = ["--perception", "oracle"]
+
+
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG whose header declares width x height pixels, with almost no data (a decompression bomb)."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0" * 64)) + chunk(b"IEND", b"")
+
+
+def _gif_header(width: int, height: int) -> bytes:
+    return b"GIF89a" + struct.pack("<HH", width, height) + b"\x00\x00\x00;"
+
+
+def _record(seed: int, **result: object) -> str:
+    """A results.jsonl line of the smoke sweep's kind, with `result` fields laid over an ok result."""
+    base = {"outcome": "stopped_before_line", "margin_m": 3.0, "sign_margin_m": 4.0, "dist_at_brake_m": 30.0,
+            "stop_position_m": [-3.0, -1.7], "sign_position_m": [1.0, -5.5], "time_to_stop_s": 2.0}
+    line = {"experiment": "sweep_smoke", "cell": "x", "seed": seed, "spec_hash": f"h{seed}", "status": "ok",
+            "error": None, "result": {**base, **result}, "trace": None, "rrd": None, "wall_s": 1.0}
+    return json.dumps(line) + "\n"
+
+
+@dataclass(frozen=True)
+class Case:
+    """argv with {tmp} for the test's folder; mention: words the refusal must contain.
+
+    files: {relative path: text or bytes} made before the case runs (they may stay, nothing else may appear).
+    """
+
+    argv: list[str]
+    mention: str
+    files: dict[str, str | bytes] = field(default_factory=dict)
+
+
+SWEEP_HEAD = 'title = "t"\n[defaults]\nperception = { kind = "oracle" }\n[grid]\n'
+
+# ---- internal errors from bad input: each reached a Python exception deep in the work --------------
+INTERNAL = {
+    "snapshot --towns ' , '": Case(["snapshot", "--towns", " , ", "--strip", "--out", "{tmp}/s"], "--towns"),
+    "snapshot --towns town07,,town03": Case(["snapshot", "--towns", "town07,,town03", "--strip", "--out", "{tmp}/s"],
+                                            "empty name"),
+    "detect: a GIF declaring 60000x60000": Case(["detect", "{tmp}/big.gif"], "megapixels",
+                                                files={"big.gif": _gif_header(60000, 60000)}),
+    "detect: a PNG declaring 8000x8000": Case(["detect", "{tmp}/b.png"], "megapixels", files={"b.png": _png_header(8000, 8000)}),
+    "detector train --epochs 0": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/w.pt", "--epochs", "0"],
+                                      "--epochs"),
+    "detector train --batch-size -4": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/w.pt",
+                                            "--batch-size", "-4"], "--batch-size"),
+    "detector train --lr inf": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/w.pt", "--lr", "inf"], "--lr"),
+    "detector train --width-mult -1": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/w.pt",
+                                            "--width-mult", "-1"], "--width-mult"),
+    "detector train --device tpu": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/w.pt", "--device", "tpu"],
+                                        "--device"),
+    "detector train --device cuda:3": Case(["detector", "train", "--data", "{tmp}", "--out", "{tmp}/w.pt",
+                                            "--device", "cuda:3"], "cuda"),
+    "detector eval: a binary val.jsonl": Case(["detector", "eval", "--data", "{tmp}/d", "--out", "{tmp}/ev"], "not UTF-8",
+                                              files={"d/val.jsonl": b"\xff\xfe\x00\x01binary\n"}),
+    "detector eval: a label line without boxes": Case(["detector", "eval", "--data", "{tmp}/d", "--out", "{tmp}/ev"],
+                                                      "val.jsonl:1", files={"d/val.jsonl": '{"image": "a.png"}\n'}),
+    "attack generate --from: a record with a NaN seed": Case(
+        ["attack", "generate", "--from", "{tmp}/r.json", "--out", "{tmp}/t.png"], "finite",
+        files={"r.json": '{"method": "yang", "seed": NaN, "hyperparameters": {}, "view_bank": {}, "weights_sha256": {}}'}),
+    "attack generate --from: a UTF-16 record": Case(["attack", "generate", "--from", "{tmp}/r.json", "--out", "{tmp}/t.png"],
+                                                    "UTF-8", files={"r.json": '{"method": "yang"}'.encode("utf-16")}),
+    "attack generate --set eps=inf": Case(["attack", "generate", "--method", "chen", "--set", "eps=inf",
+                                           "--out", "{tmp}/t.png"], "eps"),
+    "attack generate --set lr=fast": Case(["attack", "generate", "--method", "lu_v2", "--set", "lr=fast",
+                                           "--out", "{tmp}/t.png"], "lr"),
+    "attack generate --set n_stickers=2.5": Case(["attack", "generate", "--method", "eykholt", "--set", "n_stickers=2.5",
+                                                  "--out", "{tmp}/t.png"], "an integer"),
+    "attack sweep --budgets 0.1,,0.2": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1,,0.2",
+                                             "--out", "{tmp}/o"], "--budgets"),
+    "attack sweep --budgets inf": Case(["attack", "sweep", "--method", "chen", "--budgets", "inf", "--out", "{tmp}/o"],
+                                       "--budgets"),
+    "sweep: 20 values x 1000 seeds without --yes": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "--yes",
+        files={"s.toml": "seeds = 1000\n" + SWEEP_HEAD + '"scenario.speed_kmh" = [' + ", ".join(str(v) for v in range(10, 30)) + "]\n"}),
+    "sweep: more runs than any command runs": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out", "--yes"], "split it",
+        files={"s.toml": "seeds = 900000\n" + SWEEP_HEAD + '"scenario.speed_kmh" = [30, 60]\n'}),
+    "sweep --resume: a string where a number belongs": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "line 2",
+        files={"out/results.jsonl": _record(0) + _record(1, margin_m="far")}),
+    "sweep --resume: an infinite distance": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "line 1",
+        files={"out/results.jsonl": _record(0, sign_margin_m=float("inf")) + _record(1)}),
+    "sweep --resume: a seed that is text": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "seed",
+        files={"out/results.jsonl": _record(0) + _record(1).replace('"seed": 1', '"seed": "1"')}),
+}
+
+# ---- meaningless runs that were accepted in silence -----------------------------------------------
+MEANINGLESS = {
+    "run: at rest 35 m out, inside the 40 m gate": Case(["run", *ORACLE, "--set", "scenario.start_dist_m=35"],
+                                                        "braking gate"),
+    "run: adjusted braking with a 100 m gate, from rest at 90 m": Case(
+        ["run", *ORACLE, "--policy", "adjusted", "--set", "policy.trigger_dist_m=100", "--set", "scenario.start_dist_m=90"],
+        "braking gate"),
+    "run: side_camera with perception none": Case(["run", "--policy", "side_camera", "--perception", "none"], "blind"),
+    "sweep: a grid point with a perceiving policy and no perception": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "blind",
+        files={"s.toml": 'title = "t"\n[defaults]\nperception = { kind = "none" }\n[grid]\n"policy.name" = ["autopilot", "temporal_vote"]\n'}),
+    "run: --json and --mp4 on one file": Case(["run", *ORACLE, "--json", "{tmp}/x.mp4", "--mp4", "{tmp}/x.mp4"], "both write"),
+    "run: --rrd and --json through a ./ path": Case(["run", *ORACLE, "--rrd", "{tmp}/a.rrd", "--json", "{tmp}/./a.rrd"],
+                                                    "both write"),
+    "detector eval --conf 0": Case(["detector", "eval", "--conf", "0", "--out", "{tmp}/ev"], "--conf"),
+    "detector eval --conf -inf": Case(["detector", "eval", "--conf=-inf", "--out", "{tmp}/ev"], "--conf"),
+    "attack generate --set eps=0": Case(["attack", "generate", "--method", "lu_v3", "--set", "eps=0", "--out", "{tmp}/t.png"],
+                                        "eps"),
+    "attack generate --set max_area_fraction=1.5": Case(["attack", "generate", "--method", "eykholt", "--set",
+                                                         "max_area_fraction=1.5", "--out", "{tmp}/t.png"], "max_area_fraction"),
+    "attack sweep --budgets 0.1,-0.2": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1,-0.2",
+                                             "--out", "{tmp}/o"], "--budgets"),
+}
+
+# ---- checks that came after the work ------------------------------------------------------------
+LATE = {
+    "attack generate --steps -3": Case(["attack", "generate", "--method", "yang", "--steps", "-3", "--out", "{tmp}/t.png"],
+                                       "--steps"),
+    "attack generate --views-per-step 0": Case(["attack", "generate", "--method", "chen", "--views-per-step", "0",
+                                                "--out", "{tmp}/t.png"], "--views-per-step"),
+    "attack generate --set saliency_views=nan": Case(["attack", "generate", "--method", "yang", "--set",
+                                                      "saliency_views=nan", "--out", "{tmp}/t.png"], "saliency_views"),
+    "attack sweep --steps 0": Case(["attack", "sweep", "--method", "chen", "--budgets", "0.1", "--steps", "0",
+                                    "--out", "{tmp}/o"], "--steps"),
+    "attack eval --placements near,diagonal": Case(["attack", "eval", "--placements", "near,diagonal", "--out", "{tmp}/ae"],
+                                                   "diagonal"),
+    "attack eval --town town99": Case(["attack", "eval", "--town", "town99", "--out", "{tmp}/ae"], "town99"),
+    "run --sign a folder": Case(["run", *ORACLE, "--sign", "{tmp}/signs/"], "is a folder", files={"signs/keep": ""}),
+    "detect a folder": Case(["detect", "{tmp}/imgs"], "is a folder", files={"imgs/keep": ""}),
+    "detector eval --limit -1": Case(["detector", "eval", "--limit", "-1", "--out", "{tmp}/ev"], "--limit"),
+    "make-data --images-per-scene 0": Case(["detector", "make-data", "--images-per-scene", "0", "--out", "{tmp}/d"],
+                                           "images_per_scene"),
+}
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Fail the test if a closed loop or an attack's view bank is even built."""
+
+    def _boom(*args, **kwargs):
+        raise AssertionError("the command started its work before refusing bad input")
+
+    monkeypatch.setattr(avsim.loop.ClosedLoop, "__init__", _boom)
+    monkeypatch.setattr(avsim.attacks.view_bank, "build_view_bank", _boom)
+
+
+def _files_under(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*")}
+
+
+def _run_case(case: Case, tmp_path: Path, capsys, monkeypatch) -> None:
+    tmp = str(tmp_path)
+    write_files(tmp_path, case.files, tmp)
+    monkeypatch.chdir(tmp_path)  # relative default outputs (results/, data/signs) land here too
+    before = _files_under(tmp_path)
+    status = cli.main([arg.replace("{tmp}", tmp) for arg in case.argv])
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert status == 2, captured.err
+    assert 1 <= len(lines) <= 2, captured.err
+    assert case.mention in captured.err, captured.err
+    assert "internal error" not in captured.err and "Traceback" not in captured.err
+    assert captured.out == ""
+    assert _files_under(tmp_path) == before  # no output file, no temporary file, no folder
+
+
+@pytest.mark.parametrize("case", list(INTERNAL.values()), ids=list(INTERNAL))
+def test_bad_input_that_reached_an_internal_error_is_one_line(case, tmp_path, capsys, monkeypatch, no_work):
+    _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+@pytest.mark.parametrize("case", list(MEANINGLESS.values()), ids=list(MEANINGLESS))
+def test_a_run_that_cannot_mean_what_it_says_is_refused(case, tmp_path, capsys, monkeypatch, no_work):
+    _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+@pytest.mark.parametrize("case", list(LATE.values()), ids=list(LATE))
+def test_values_are_checked_before_the_work_not_after(case, tmp_path, capsys, monkeypatch, no_work):
+    _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+# ---- python -m entry points share the layer and the boundary ----------------------------------------
+
+ENTRY_POINTS = {
+    "brake_test --speed-kmh inf": ("avsim.vehicle.brake_test", ["--speed-kmh", "inf"], "--speed-kmh"),
+    "brake_test --speed-kmh 0": ("avsim.vehicle.brake_test", ["--speed-kmh", "0"], "--speed-kmh"),
+    "bench_sweep --seeds 0": ("avsim.experiments.bench_sweep", ["--seeds", "0"], "--seeds"),
+    "bench_latency --threads 0": ("avsim.perception.detector.bench_latency", ["--threads", "0"], "--threads"),
+    "detector.train --lr nan": ("avsim.perception.detector.train", ["--data", "d", "--out", "w.pt", "--lr", "nan"], "--lr"),
+    "coco.realism --threshold 1": ("avsim.perception.coco.realism", ["--data", "d", "--threshold", "1"], "--threshold"),
+}
+
+
+@pytest.mark.parametrize("module, argv, mention", list(ENTRY_POINTS.values()), ids=list(ENTRY_POINTS))
+def test_module_entry_points_refuse_bad_numbers_in_one_line(module, argv, mention, tmp_path, capsys, monkeypatch):
+    import importlib
+
+    monkeypatch.chdir(tmp_path)
+    main = importlib.import_module(module).main
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse's refusal
+        status = exc.code
+    err = capsys.readouterr().err
+    assert status == 2 and 1 <= len(err.splitlines()) <= 2 and mention in err, err
+    assert list(tmp_path.iterdir()) == []
