@@ -29,6 +29,7 @@ from typing import Any
 
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
+from avsim.cli_recording import add_recording_modes
 from avsim.config import check_seed
 from avsim.errors import AvsimError, ConfigError, Interrupted
 from avsim.outputs import FILE, FOLDER, PREFIX, add_output_argument, check_declared_outputs, check_output_file
@@ -70,7 +71,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from avsim.runner import run_recorded
     from avsim.summary import format_summary
 
-    if args.config:
+    if args.config and Path(args.config).suffix == ".jsonl":
+        from avsim.config import with_overrides
+        from avsim.experiments.rerun_record import config_from_results
+
+        # A batch's results file: the run's resolved config, as it ran; the flags apply on top.
+        overrides = _flag_overrides(args)
+        seed = args.seed if args.seed is not None else 0
+        config = with_overrides(config_from_results(args.config, args.cell, seed), overrides)
+    elif args.config:
         from avsim.config import with_overrides
         from avsim.experiments.spec import load_experiment
 
@@ -87,7 +96,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = _config_from_args(args)
-    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4)
+    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4, mcap_path=args.mcap)
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
     if args.json is not None:
@@ -101,9 +110,10 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address)
+                    backend=args.backend, address=args.address, rrd=args.rrd, mcap=args.mcap)
     print((out / "report.md").read_text())
-    print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
+    print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd}, --mcap {args.mcap}) "
+                                                             f"under {out}/rrd/ and {out}/mcap/" if args.rrd != "none" or args.mcap != "none" else ""))
     return 0
 
 
@@ -112,7 +122,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
-                    backend=args.backend, address=args.address)
+                    backend=args.backend, address=args.address, rrd=args.rrd, mcap=args.mcap)
     print((out / "summary.md").read_text())
     print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
     return 0
@@ -124,7 +134,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
 
     board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
-                          progress=not args.no_progress, backend=args.backend, address=args.address)
+                          progress=not args.no_progress, backend=args.backend, address=args.address,
+                          rrd=args.rrd, mcap=args.mcap)
     print((out / "leaderboard.md").read_text())
     print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
     return 0
@@ -310,8 +321,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
     add_output_argument(run, "--mp4", kind=FILE, suffix=".mp4",
                         help="write a video of the front camera with the detections, speed and brake to this .mp4 file")
-    run.add_argument("--config", help="experiment file (experiments/*.toml): run one of its cells; the flags above apply on top")
-    run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell)")
+    add_output_argument(run, "--mcap", kind=FILE, suffix=".mcap",
+                        help="write the run as a ROS 2 bag in MCAP storage (images, camera_info, detections, odom, tf, "
+                             "commands; needs avsim[ros]; docs/ros.md)")
+    run.add_argument("--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
+                                      "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")
+    run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell of an experiment file)")
     run.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
@@ -325,6 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_recording_modes(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
     swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
@@ -341,6 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_recording_modes(swp)
     swp.set_defaults(func=_cmd_sweep)
 
     board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "
@@ -355,6 +372,7 @@ def build_parser() -> argparse.ArgumentParser:
     board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_recording_modes(board)
     board.set_defaults(func=_cmd_leaderboard)
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")

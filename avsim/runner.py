@@ -1,13 +1,13 @@
 """One closed-loop run with its optional recorders: what `avsim run` and every batch execute.
 
-    output = run_recorded(config, rrd_path="run.rrd", mp4_path=None)
+    output = run_recorded(config, rrd_path="run.rrd", mp4_path=None, mcap_path=None)
     output.result        # RunResult, as written by `avsim run --json`
     output.records       # one StepRecord per control step (state at sensing time)
     result, wall_s = run_config(config)   # the same run, no recorders
 
 Recording never changes the run: the recorders only read the loop after each step. Each
 file appears only when the run completes (the recorders write to a temporary name and
-rename on close), so an interrupted run leaves no half-written `.rrd` or `.mp4`.
+rename on close), so an interrupted run leaves no half-written `.rrd`, `.mp4` or `.mcap`.
 """
 
 from __future__ import annotations
@@ -32,8 +32,9 @@ class RunOutput:
 
 
 def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None,
-                 mp4_path: str | os.PathLike | None = None) -> RunOutput:
-    """Run `config` to the end, recording it to `rrd_path` (rerun) and `mp4_path` (video) if given."""
+                 mp4_path: str | os.PathLike | None = None, mcap_path: str | os.PathLike | None = None) -> RunOutput:
+    """Run `config` to the end, recording it to `rrd_path` (rerun), `mp4_path` (video) and
+    `mcap_path` (a ROS 2 bag, needs avsim[ros]) where given."""
     start = time.perf_counter()
     loop = ClosedLoop(config)
     try:
@@ -47,12 +48,19 @@ def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None
                 from avsim.recording.video import VideoRecorder
 
                 hooks.append(recorders.enter_context(VideoRecorder(loop, mp4_path)).on_step)
+            if mcap_path:
+                from avsim.recording.ros_bag import BagRecorder
+
+                bag = recorders.enter_context(BagRecorder(loop, mcap_path))
+                hooks.append(bag.on_step)
 
             def on_step(loop_: ClosedLoop, record: StepRecord) -> None:
                 for hook in hooks:
                     hook(loop_, record)
 
             result = loop.run(on_step=on_step if hooks else None)
+            if mcap_path:
+                bag.set_result(result)  # the bag's last message: the run's config and result
     finally:
         loop.close()
     return RunOutput(result, tuple(loop.records), time.perf_counter() - start)

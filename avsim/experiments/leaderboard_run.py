@@ -18,25 +18,28 @@ from avsim.errors import RunsFailedError
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.leaderboard import Leaderboard, unique_specs
 from avsim.experiments.leaderboard_report import write_leaderboard_report
+from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.metrics import write_json_atomic
 
 
 def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
                     resume: bool = False, progress: bool = True, backend: str = "local",
-                    address: str | None = None) -> Path:
+                    address: str | None = None, rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP) -> Path:
     """Run the board's matrix into `out_dir` (`avsim.experiments.leaderboard`'s docstring lists what
-    it writes there); returns `out_dir`."""
+    it writes there); returns `out_dir`. rrd, mcap: which runs are recorded, under OUT/rrd/ and
+    OUT/mcap/ (`avsim.experiments.recordings`)."""
     check_backend(backend, address)
+    check_modes(rrd, mcap)
     out = Path(out_dir)
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
     workers = resolve_workers(workers, address)
     runs = board.runs(quick)
-    specs = unique_specs(board, runs)
+    specs = with_recordings(unique_specs(board, runs), out, rrd=rrd, mcap=mcap)
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
                f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
-    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)])
+    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)]) + recording_flags(rrd, mcap)
 
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()

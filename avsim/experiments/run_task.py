@@ -15,7 +15,8 @@ A record (a JSON-ready dict, one line of `runs.jsonl`):
     trace                     per control step: sign_dist_m [m, bumper to sign], speed_mps,
                               brake [0..1], and per camera the policy rendered, <camera>_conf:
                               its best stop-sign confidence (0 when it reported none)
-    rrd                       path of the run's rerun recording, relative to the batch folder
+    rrd, mcap                 paths of the run's rerun recording and ROS 2 bag, relative to the batch
+                              folder, or null where none was asked for (`avsim.experiments.recordings`)
     wall_s                    wall-clock time of the run [s]
 """
 
@@ -33,8 +34,9 @@ from typing import Any
 from avsim.config import NO_SIGN, SimConfig
 from avsim.control.policies import POLICIES, STOP_CLASS
 from avsim.errors import ConfigError
+from avsim.experiments.failures import is_failed_run
 from avsim.metrics import StepRecord
-from avsim.runner import run_recorded
+from avsim.runner import RunOutput, run_recorded
 from avsim.world.scene import resolve_sign_texture
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
@@ -45,7 +47,9 @@ _TRACE_DECIMALS = 4
 class RunSpec:
     """One run of a batch: where it comes from, its config, and where its recording goes.
 
-    rrd_path: absolute path of the `.rrd` to write, or None for no recording.
+    rrd_path, mcap_path: absolute paths of the `.rrd` and `.mcap` to write, or None for none.
+    record_when: "all" records every run; "failed" only a run whose car failed
+    (`avsim.experiments.failures`), by running it again with its recorders.
     """
 
     experiment: str
@@ -53,6 +57,8 @@ class RunSpec:
     seed: int
     config: SimConfig
     rrd_path: str | None = None
+    mcap_path: str | None = None
+    record_when: str = "all"
 
     @property
     def spec_hash(self) -> str:
@@ -105,7 +111,7 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     """
     record = _blank_record(spec)
     try:
-        output = run_recorded(spec.config, rrd_path=spec.rrd_path)
+        output, recorded = _run(spec)
     except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" (at {Path(last.filename).name}:{last.lineno})" if last else ""
@@ -114,14 +120,41 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     cameras = POLICIES.get(spec.config.policy.name).cameras
     record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),
                   wall_s=round(output.wall_s, 3))
-    if spec.rrd_path:
-        record["rrd"] = os.path.relpath(spec.rrd_path, root) if root else spec.rrd_path
+    if recorded:
+        for key, path in (("rrd", spec.rrd_path), ("mcap", spec.mcap_path)):
+            if path:
+                record[key] = os.path.relpath(path, root) if root else path
     return record
+
+
+def _run(spec: RunSpec) -> tuple[RunOutput, bool]:
+    """The spec's run, recorded as `spec.record_when` asks; (output, whether it was recorded)."""
+    paths = {"rrd_path": spec.rrd_path, "mcap_path": spec.mcap_path}
+    if not any(paths.values()):
+        return run_recorded(spec.config), False
+    if spec.record_when == "all":
+        return run_recorded(spec.config, **paths), True
+    output = run_recorded(spec.config)
+    if not is_failed_run(output.result):
+        return output, False
+    again = run_recorded(spec.config, **paths)
+    if again.records != output.records or _canonical(again.result.to_json_dict()) != _canonical(output.result.to_json_dict()):
+        for path in paths.values():
+            if path:
+                Path(path).unlink(missing_ok=True)
+        raise RuntimeError("the recorded run differs from the unrecorded one (the run is not deterministic); "
+                           "its recording was deleted")
+    return output, True
+
+
+def _canonical(payload: dict[str, Any]) -> str:
+    return json.dumps(payload, sort_keys=True)
 
 
 def _blank_record(spec: RunSpec) -> dict[str, Any]:
     return {"experiment": spec.experiment, "cell": spec.cell, "seed": spec.seed, "spec_hash": spec.spec_hash,
-            "status": "ok", "error": None, "result": None, "trace": None, "rrd": None, "wall_s": None}
+            "status": "ok", "error": None, "result": None, "trace": None, "rrd": None, "mcap": None,
+            "wall_s": None}
 
 
 def failed_record(spec: RunSpec, error: str) -> dict[str, Any]:

@@ -56,6 +56,7 @@ from typing import Any
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
@@ -204,8 +205,11 @@ def _lookup(config: SimConfig, dotted: str) -> Scalar:
 # ---- running ---------------------------------------------------------------------------------
 
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None = None, resume: bool = False,
-              progress: bool = True, backend: str = "local", address: str | None = None) -> Path:
+              progress: bool = True, backend: str = "local", address: str | None = None,
+              rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP) -> Path:
     """Run every point of `sweep` into `out_dir` (see the module docstring); returns `out_dir`.
+
+    rrd, mcap: which runs are recorded, under OUT/rrd/ and OUT/mcap/ (`avsim.experiments.recordings`).
 
     workers: runs at once (default: one per core; on a Ray cluster at `address`, the cluster's
     CPUs). backend, address: see `avsim.experiments.batch.run_batch`.
@@ -215,13 +219,14 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     from avsim.experiments.sweep_report import write_sweep_report
 
     check_backend(backend, address)
+    check_modes(rrd, mcap)
     out = Path(out_dir)
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
     workers = resolve_workers(workers, address)
 
     runs = sweep.runs()
-    specs = sweep.specs()
+    specs = with_recordings(sweep.specs(), out, rrd=rrd, mcap=mcap)
     point_of = {spec.spec_hash: run.point for spec, run in zip(specs, runs)}
     if len(point_of) != len(specs):
         raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
@@ -233,13 +238,14 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
-    records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out} --resume",
+    records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out}{recording_flags(rrd, mcap)} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
                                  address=address, decorate=lambda record: with_point(record, point_of[record["spec_hash"]]))
     wall_s = time.perf_counter() - started
     options = [f"--workers {workers}" if workers is not None else "",
                f"--backend {backend}" if backend != "local" else "",
-               f"--address {address}" if address is not None else "", "--resume" if resume else ""]
+               f"--address {address}" if address is not None else "", recording_flags(rrd, mcap).strip(),
+               "--resume" if resume else ""]
     manifest = {
         "command": " ".join([f"avsim sweep {sweep.path} --out {out}", *filter(None, options)]),
         "started_at": started_at.isoformat(timespec="seconds"),
