@@ -110,10 +110,10 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address, rrd=args.rrd, mcap=args.mcap)
+                    backend=args.backend, address=args.address, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "report.md").read_text())
-    print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd}, --mcap {args.mcap}) "
-                                                             f"under {out}/rrd/ and {out}/mcap/" if args.rrd != "none" or args.mcap != "none" else ""))
+    print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd_mode}, --mcap {args.mcap_mode}) "
+                                                             f"under {out}/rrd/ and {out}/mcap/" if args.rrd_mode != "none" or args.mcap_mode != "none" else ""))
     return 0
 
 
@@ -122,7 +122,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = load_sweep(args.file)  # checks every grid value before anything runs or is written
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
-                    backend=args.backend, address=args.address, rrd=args.rrd, mcap=args.mcap)
+                    backend=args.backend, address=args.address, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "summary.md").read_text())
     print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
     return 0
@@ -135,7 +135,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
                           progress=not args.no_progress, backend=args.backend, address=args.address,
-                          rrd=args.rrd, mcap=args.mcap)
+                          rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "leaderboard.md").read_text())
     print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
     return 0

@@ -110,7 +110,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
 
         protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
     csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
-                                       protocol=protocol, workers=args.workers, rrd=args.rrd, mcap=args.mcap)
+                                       protocol=protocol, workers=args.workers, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print(f"wrote {csv_path} and {plot_path}")
     return 0
 
