@@ -78,6 +78,12 @@ class CameraPose:
         return float(-(self.rotation[:, 2] @ (np.asarray(point_world_m) - self.position_m)))
 
 
+def _render_key(data: mujoco.MjData) -> bytes:
+    """What a frame is drawn from: the time and every geom's, camera's and light's pose."""
+    return b"".join(np.ascontiguousarray(a).tobytes() for a in (
+        np.float64(data.time), data.geom_xpos, data.geom_xmat, data.cam_xpos, data.cam_xmat, data.light_xpos, data.light_xdir))
+
+
 class CameraRig:
     """Renders the car's cameras. One RGB and one segmentation renderer serve both
     cameras (a renderer is not tied to a camera), created on first use so that a
@@ -93,6 +99,7 @@ class CameraRig:
         self._option = mujoco.MjvOption()
         self._option.geomgroup[EGO_GROUP] = 0
         self._option.geomgroup[3] = 0
+        self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (poses, frame): `render_rgb`
 
     def intrinsics(self, camera: str) -> Intrinsics:
         return intrinsics_for(camera, self._config)
@@ -102,10 +109,22 @@ class CameraRig:
         return CameraPose(data.cam_xpos[cid].copy(), data.cam_xmat[cid].reshape(3, 3).copy())
 
     def render_rgb(self, data: mujoco.MjData, camera: str) -> np.ndarray:
-        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array)."""
+        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array).
+
+        The last frame of each camera is kept with the poses it was drawn from, and asking
+        again for the same camera and poses returns a copy of it instead of drawing it again:
+        a recorder and the perception both ask for each sensing state's frame, and a frame is
+        a function of the poses alone (the scene and the options never change).
+        """
+        key = _render_key(data)
+        last = self._last_rgb.get(camera)
+        if last is not None and last[0] == key:
+            return last[1].copy()
         if self._rgb is None:
             self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False, fog=self._fog)
-        return self._rgb.render(data, self._ids[camera], self._option).copy()
+        frame = self._rgb.render(data, self._ids[camera], self._option).copy()
+        self._last_rgb[camera] = (key, frame)
+        return frame.copy()
 
     def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
         """Model geom id per pixel, (H * s, W * s) int32 with s = seg_supersample; -1 for background."""
@@ -178,3 +197,4 @@ class CameraRig:
             if renderer is not None:
                 renderer.close()
         self._rgb = self._seg = None
+        self._last_rgb.clear()
