@@ -165,6 +165,11 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    if args.recording:
+        from avsim.recording.overhead import print_recording_overhead
+
+        print_recording_overhead(repeats=1 if args.quick else 3)
+        return 0
     from avsim.bench import run_benchmarks
 
     run_benchmarks(quick=args.quick)
@@ -395,6 +400,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
+    bench.add_argument("--recording", action="store_true",
+                       help="only what --rrd and --mcap add to a run: wall time and file size (docs/recording.md)")
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
     add_attack_commands(sub)
