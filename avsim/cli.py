@@ -96,7 +96,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = _config_from_args(args)
-    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4, mcap_path=args.mcap)
+    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4, mcap_path=args.mcap,
+                          mcap_images=args.mcap_images)
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
     if args.json is not None:
@@ -239,6 +240,26 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_replay(args: argparse.Namespace) -> int:
+    import json
+
+    from avsim.metrics import write_text_atomic
+    from avsim.recording.ros_replay import replay
+
+    overrides = parse_set(args.set).get("perception", {})
+    if args.perception:
+        overrides = {**overrides, "kind": args.perception}
+    lines = (json.dumps(record) for record in replay(args.bag, overrides))
+    if args.out is None:
+        for line in lines:
+            print(line, flush=True)
+        return 0
+    text = "".join(line + "\n" for line in lines)  # all or nothing: written once every image is done
+    write_text_atomic(args.out, text)
+    print(f"wrote {text.count(chr(10))} image records to {args.out}")
+    return 0
+
+
 DETECT_HELP = """Run a perception on image files and print one JSON line per image:
 {"image", "width", "height", "perception", "detections": [{"class", "confidence", "box_xyxy_px"}]}
 with every detection at or above perception.min_confidence, highest first, boxes in the
@@ -329,6 +350,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_output_argument(run, "--mcap", kind=FILE, suffix=".mcap",
                         help="write the run as a ROS 2 bag in MCAP storage (images, camera_info, detections, odom, tf, "
                              "commands; needs avsim[ros]; docs/ros.md)")
+    run.add_argument("--mcap-images", choices=("png", "jpeg"), default="png",
+                     help="how --mcap stores camera images: png (lossless, the default) or jpeg (quality 90, smaller)")
     run.add_argument("--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
                                       "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")
     run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell of an experiment file)")
@@ -397,6 +420,19 @@ def build_parser() -> argparse.ArgumentParser:
     detect.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override any config key, e.g. --set perception.coco_input=resize (repeatable)")
     detect.set_defaults(func=_cmd_detect)
+
+    rep_bag = sub.add_parser("replay", help="run a perception over a ROS bag's camera images; one JSON line per image",
+                             description="Run a pixel perception over every sensor_msgs/CompressedImage of a ROS bag "
+                                         "(.mcap, a ROS 2 bag folder or a ROS 1 .bag; needs avsim[ros]), as the closed "
+                                         "loop runs it (region of interest, range limit). One JSON line per image: topic, "
+                                         "camera, stamp_ns, width, height, perception, detections. The settings start from "
+                                         "the bag's own avsim run, if it is one (docs/ros.md).")
+    rep_bag.add_argument("bag", help="the bag: an .mcap file or a bag folder")
+    rep_bag.add_argument("--perception", help="detector, coco, ensemble or onnx (default: the bag's own, or detector)")
+    rep_bag.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                         help="override a perception key, e.g. --set perception.min_confidence=0.3 (repeatable)")
+    add_output_argument(rep_bag, "--out", kind=FILE, help="write the JSON lines to this file instead of printing them")
+    rep_bag.set_defaults(func=_cmd_replay)
 
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")

@@ -32,9 +32,10 @@ class RunOutput:
 
 
 def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None,
-                 mp4_path: str | os.PathLike | None = None, mcap_path: str | os.PathLike | None = None) -> RunOutput:
+                 mp4_path: str | os.PathLike | None = None, mcap_path: str | os.PathLike | None = None,
+                 mcap_images: str = "png") -> RunOutput:
     """Run `config` to the end, recording it to `rrd_path` (rerun), `mp4_path` (video) and
-    `mcap_path` (a ROS 2 bag, needs avsim[ros]) where given."""
+    `mcap_path` (a ROS 2 bag, needs avsim[ros]; images as `mcap_images`, png or jpeg) where given."""
     start = time.perf_counter()
     loop = ClosedLoop(config)
     try:
@@ -51,7 +52,7 @@ def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None
             if mcap_path:
                 from avsim.recording.ros_bag import BagRecorder
 
-                bag = recorders.enter_context(BagRecorder(loop, mcap_path))
+                bag = recorders.enter_context(BagRecorder(loop, mcap_path, image_format=mcap_images))
                 hooks.append(bag.on_step)
 
             def on_step(loop_: ClosedLoop, record: StepRecord) -> None:

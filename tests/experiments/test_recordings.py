@@ -1,6 +1,7 @@
 """Recordings on request: `--rrd none|failed|all` in a batch, and recording any run afterwards."""
 
 import dataclasses
+import importlib.util
 import json
 
 import pytest
@@ -38,7 +39,8 @@ def batch(tmp_path_factory):
     root = tmp_path_factory.mktemp("recordings")
     experiment = root / "two_cells.toml"
     experiment.write_text(TWO_CELLS)
-    out = reproduce(root / "results", workers=1, experiment_paths=[experiment], progress=False, rrd="failed")
+    mcap = "failed" if importlib.util.find_spec("rosbags") else "none"  # bags need avsim[ros]
+    out = reproduce(root / "results", workers=1, experiment_paths=[experiment], progress=False, rrd="failed", mcap=mcap)
     return experiment, out, read_records(out / "runs.jsonl")
 
 
@@ -50,9 +52,11 @@ def test_rrd_failed_records_exactly_the_runs_whose_car_failed(batch):
     for r in records:
         failed = is_failed_run(RunResult(**r["result"]))
         assert failed == (r["cell"] == "runs past")
-        assert (r["rrd"] is not None) == failed and r["mcap"] is None
-    written = sorted(p.relative_to(out).as_posix() for p in (out / "rrd").rglob("*") if p.is_file())
-    assert written == sorted(r["rrd"] for r in records if r["rrd"])
+        assert (r["rrd"] is not None) == failed
+        assert (r["mcap"] is not None) == (failed and importlib.util.find_spec("rosbags") is not None)
+    for kind in ("rrd", "mcap"):
+        written = sorted(p.relative_to(out).as_posix() for p in out.glob(f"{kind}/**/*") if p.is_file())
+        assert written == sorted(r[kind] for r in records if r[kind])
     assert all((out / r["rrd"]).stat().st_size > 10_000 for r in records if r["rrd"])
 
 
