@@ -14,6 +14,9 @@ time (simulated; `/clock` carries it too). Frames are listed in `avsim.recording
     /perception/detections           vision_msgs/Detection2DArray: every camera's detections of the
                                      step; each Detection2D's frame is its camera's optical frame, its
                                      hypothesis the class name and score, its box centre and size [px]
+    /camera/<cam>/detections/marker  visualization_msgs/ImageMarker: the same boxes as one LINE_LIST
+                                     in the camera's pixels (red: stop sign, yellow: other), which
+                                     Foxglove's image panel draws over the image
     /odom                            nav_msgs/Odometry: odom -> base_link, pose from the car's free
                                      joint, twist in base_link
     /tf                              tf2_msgs/TFMessage: odom -> base_link (the pose of /odom)
@@ -58,6 +61,7 @@ import cv2
 import mujoco
 import numpy as np
 
+from avsim.control.policies import STOP_CLASS
 from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
 from avsim.metrics import RunResult, StepRecord
@@ -71,6 +75,9 @@ DEFAULT_JPEG_QUALITY = 90
 RUN_TOPIC = "/avsim/run"
 DETECTIONS_TOPIC = "/perception/detections"
 RAW_COMMAND_LABELS = ("throttle", "brake", "steer_rad")
+# Box colours (r, g, b, a in 0-1), as in the rerun recording and the video.
+_STOP_RGBA = (1.0, 0.16, 0.16, 1.0)
+_OTHER_RGBA = (1.0, 0.78, 0.0, 1.0)
 # Sensing times of a frame and its record agree to well under one physics step [s].
 _TIME_TOLERANCE_S = 1e-6
 
@@ -81,6 +88,10 @@ def image_topic(camera: str) -> str:
 
 def camera_info_topic(camera: str) -> str:
     return f"/camera/{camera}/camera_info"
+
+
+def marker_topic(camera: str) -> str:
+    return f"/camera/{camera}/detections/marker"
 
 
 @dataclass(frozen=True)
@@ -220,6 +231,7 @@ class BagRecorder:
         for cam in self.cameras:
             topics[image_topic(cam)] = "sensor_msgs/msg/CompressedImage"
             topics[camera_info_topic(cam)] = "sensor_msgs/msg/CameraInfo"
+            topics[marker_topic(cam)] = "visualization_msgs/msg/ImageMarker"
         connections = {}
         for topic, msgtype in topics.items():
             connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self._store)
@@ -264,6 +276,7 @@ class BagRecorder:
                 header=header(time_s, optical_frame(cam)), format=self._format,
                 data=np.frombuffer(frame.images[cam], dtype=np.uint8)))
             self._write(camera_info_topic(cam), stamp_ns, self._camera_info(time_s, cam))
+            self._write(marker_topic(cam), stamp_ns, self._marker(time_s, cam, record.detections))
         self._write(DETECTIONS_TOPIC, stamp_ns, t["vision_msgs/msg/Detection2DArray"](
             header=header(time_s, BASE_FRAME), detections=[self._detection(time_s, d) for d in record.detections]))
         odom_tf = self._transform(time_s, ODOM_FRAME, BASE_FRAME, frame.position_m, frame.quat_wxyz)
@@ -304,6 +317,26 @@ class BagRecorder:
             size_x=x1 - x0, size_y=y1 - y0)
         return t["vision_msgs/msg/Detection2D"](header=header(time_s, optical_frame(detection.camera)), results=[hypothesis],
                                                 bbox=box, id=detection.source)
+
+    def _marker(self, time_s: float, camera: str, detections: tuple[Detection, ...]) -> Any:
+        """The camera's boxes as one LINE_LIST: four edges, eight points, per box."""
+        t = self._types
+        points, colours = [], []
+        for d in detections:
+            if d.camera != camera:
+                continue
+            x0, y0, x1, y1 = d.box_xyxy_px
+            corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+            colour = t["std_msgs/msg/ColorRGBA"](*(_STOP_RGBA if d.class_name == STOP_CLASS else _OTHER_RGBA))
+            for i in range(4):
+                for x, y in (corners[i], corners[(i + 1) % 4]):
+                    points.append(t["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0))
+                    colours.append(colour)
+        return t["visualization_msgs/msg/ImageMarker"](
+            header=header(time_s, optical_frame(camera)), ns="detections", id=0, type=2, action=0,  # LINE_LIST, ADD
+            position=t["geometry_msgs/msg/Point"](0.0, 0.0, 0.0), scale=2.0,
+            outline_color=t["std_msgs/msg/ColorRGBA"](*_STOP_RGBA), filled=0, fill_color=t["std_msgs/msg/ColorRGBA"](0.0, 0.0, 0.0, 0.0),
+            lifetime=t["builtin_interfaces/msg/Duration"](sec=0, nanosec=0), points=points, outline_colors=colours)
 
     def _odometry(self, time_s: float, frame: _Frame) -> Any:
         t = self._types

@@ -22,14 +22,15 @@ from avsim.config import focal_length_px  # noqa: E402
 from avsim.errors import ConfigError  # noqa: E402
 from avsim.loop import ClosedLoop  # noqa: E402
 from avsim.recording import ros_types  # noqa: E402
-from avsim.recording.ros_bag import DETECTIONS_TOPIC, camera_info_topic, image_topic  # noqa: E402
+from avsim.recording.ros_bag import DETECTIONS_TOPIC, camera_info_topic, image_topic, marker_topic  # noqa: E402
 from avsim.recording.ros_replay import replay  # noqa: E402
 from avsim.runner import run_recorded  # noqa: E402
 from helpers import make_config  # noqa: E402
 
 CAMERAS = ("front", "side")
 PER_STEP_TOPICS = ("/clock", "/odom", "/tf", DETECTIONS_TOPIC, "/vehicle/command", "/vehicle/command/raw",
-                   *(image_topic(c) for c in CAMERAS), *(camera_info_topic(c) for c in CAMERAS))
+                   *(image_topic(c) for c in CAMERAS), *(camera_info_topic(c) for c in CAMERAS),
+                   *(marker_topic(c) for c in CAMERAS))
 # The learned detector on both cameras (the side-camera policy renders both), on a short approach.
 CONFIG = make_config(scenario={"speed_kmh": 40.0, "start_speed_kmh": 40.0, "start_dist_m": 40.0},
                      policy={"name": "side_camera"}, perception={"kind": "detector"})
@@ -129,6 +130,11 @@ def test_detections_are_the_runs_records(bag):
                  ((d.box_xyxy_px[0] + d.box_xyxy_px[2]) / 2, (d.box_xyxy_px[1] + d.box_xyxy_px[3]) / 2,
                   d.box_xyxy_px[2] - d.box_xyxy_px[0], d.box_xyxy_px[3] - d.box_xyxy_px[1])) for d in record.detections]
         assert got == want
+    # The image markers hold the same boxes: four edges (eight points) each, in the camera's pixels.
+    for record, (_, marker) in zip(output.records, messages[marker_topic("front")], strict=True):
+        boxes = [d.box_xyxy_px for d in record.detections if d.camera == "front"]
+        corners = [(p.x, p.y) for p in marker.points[::2]]
+        assert corners == [c for x0, y0, x1, y1 in boxes for c in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
 
 
 def test_odom_is_the_trace_and_tf_carries_the_same_pose(bag):
