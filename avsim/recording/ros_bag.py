@@ -29,6 +29,8 @@ time (simulated; `/clock` carries it too). Frames are listed in `avsim.recording
     /vehicle/command/raw             std_msgs/Float64MultiArray: [throttle 0-1, brake 0-1, steer_rad],
                                      labelled in its layout, exactly as the policy commanded them
     /clock                           rosgraph_msgs/Clock: the sensing time
+    /scene                           visualization_msgs/MarkerArray, once: road edges, stop line, stop
+                                     sign and the car's body boxes (`avsim.recording.ros_scene`)
     /avsim/run                       std_msgs/String, once at the end: JSON {"config", "result"}
 The cameras are "front", and "side" where the policy uses it. Pixel coordinates are avsim's:
 pixel i covers [i, i + 1), so the centre of pixel (0, 0) is (0.5, 0.5) (OpenCV's convention
@@ -67,6 +69,7 @@ from avsim.loop import ClosedLoop
 from avsim.metrics import RunResult, StepRecord
 from avsim.perception.base import Detection
 from avsim.recording import ros_types
+from avsim.recording.ros_scene import scene_markers
 from avsim.recording.ros_types import BASE_FRAME, MAP_FRAME, ODOM_FRAME, camera_link, header, optical_frame, time_ns
 from avsim.world.scene import CAR_PREFIX
 
@@ -227,7 +230,7 @@ class BagRecorder:
                   DETECTIONS_TOPIC: "vision_msgs/msg/Detection2DArray",
                   "/vehicle/command": "ackermann_msgs/msg/AckermannDriveStamped",
                   "/vehicle/command/raw": "std_msgs/msg/Float64MultiArray", "/clock": "rosgraph_msgs/msg/Clock",
-                  RUN_TOPIC: "std_msgs/msg/String"}
+                  RUN_TOPIC: "std_msgs/msg/String", "/scene": "visualization_msgs/msg/MarkerArray"}
         for cam in self.cameras:
             topics[image_topic(cam)] = "sensor_msgs/msg/CompressedImage"
             topics[camera_info_topic(cam)] = "sensor_msgs/msg/CameraInfo"
@@ -258,6 +261,7 @@ class BagRecorder:
             transforms.append(self._transform(0.0, camera_link(cam), optical_frame(cam), np.zeros(3),
                                               _quat_wxyz(link_axes.T @ optical_axes)))
         self._write("/tf_static", 0, self._types["tf2_msgs/msg/TFMessage"](transforms=transforms))
+        self._write("/scene", 0, scene_markers(self._types, model, self._loop.scene))
 
     def _transform(self, time_s: float, parent: str, child: str, translation_m: np.ndarray, quat_wxyz: np.ndarray) -> Any:
         t = self._types

@@ -81,7 +81,9 @@ def test_every_message_deserialises_and_each_step_has_one_per_topic(bag):
         times = [t for t, _ in messages[topic]]
         assert times == sorted(set(times)), topic  # stamps increase
         assert times == [round(r.time_s * 1e9) for r in output.records]
-    assert len(messages["/tf_static"]) == 1 and len(messages["/avsim/run"]) == 1
+    assert len(messages["/tf_static"]) == 1 and len(messages["/avsim/run"]) == 1 and len(messages["/scene"]) == 1
+    (_, scene), = messages["/scene"]
+    assert {m.ns for m in scene.markers} == {"road", "stop_line", "stop_sign", "car"}
     assert [p.name for p in path.parent.iterdir()] == ["run.mcap"]  # no temporary left
 
 
@@ -91,7 +93,7 @@ def test_rosbags_reads_it_too(bag):
     path, output, _, _ = bag
     with AnyReader([path]) as reader:
         count = sum(1 for c, _, raw in reader.messages() if reader.deserialize(raw, c.msgtype) is not None)
-    assert count == len(PER_STEP_TOPICS) * len(output.records) + 2
+    assert count == len(PER_STEP_TOPICS) * len(output.records) + 3
 
 
 def test_images_decode_bit_for_bit_to_the_rendered_frames(bag):
