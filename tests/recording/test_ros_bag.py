@@ -260,3 +260,32 @@ def test_without_the_ros_extra_the_error_names_it(monkeypatch):
     monkeypatch.setitem(sys.modules, "rosbags.rosbag2", None)  # import fails as if not installed
     with pytest.raises(ConfigError, match=r"avsim\[ros\]"):
         ros_types.require_rosbags()
+
+
+def test_the_foxglove_layout_names_only_topics_and_fields_the_bag_has(bag):
+    from pathlib import Path
+
+    _, _, messages, _ = bag
+    layout = json.loads((Path(__file__).resolve().parents[2] / "docs" / "foxglove_layout.json").read_text())
+    panels = layout["configById"]
+    topics = set()
+    for name, config in panels.items():
+        mode = config.get("imageMode", {})
+        topics |= {mode.get("imageTopic"), mode.get("calibrationTopic"), *mode.get("annotations", {})} - {None}
+        topics |= set(config.get("topics", {}))
+        for path in config.get("paths", []):
+            topic, _, fields = path["value"].partition(".")
+            topics.add(topic)
+            _, message = messages[topic][0]
+            value = message
+            for field in fields.split("."):  # e.g. data[1]
+                key, _, index = field.partition("[")
+                value = getattr(value, key)
+                value = value[int(index.rstrip("]"))] if index else value
+            assert isinstance(value, float), path["value"]
+    assert topics <= set(messages), topics - set(messages)
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+
+    assert sorted(leaves(layout["layout"])) == sorted(panels)
