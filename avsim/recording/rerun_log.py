@@ -42,7 +42,6 @@ import os
 from dataclasses import dataclass
 from collections.abc import Iterable
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import cv2
@@ -58,6 +57,7 @@ from avsim.perception.base import Detection
 from avsim.recording import paths
 from avsim.recording.blueprint import default_blueprint
 from avsim.recording.static_scene import log_pinhole, log_world
+from avsim.recording.step_recorder import StepRecorder
 from avsim.sensors.camera import CameraPose
 from avsim.world.scene import CAR_PREFIX
 
@@ -65,8 +65,6 @@ APPLICATION_ID = "avsim"
 DEFAULT_JPEG_QUALITY = 85
 # The trajectory is drawn on the road, not at the body origin (wheel-centre height) [m].
 TRAJECTORY_Z_M = 0.05
-# Sensing times of a frame and its record agree to well under one physics step [s].
-_TIME_TOLERANCE_S = 1e-6
 
 # Series name and colour per metric field, shown in the time-series legends.
 SERIES_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
@@ -96,7 +94,7 @@ class _Frame:
     camera_poses: dict[str, CameraPose]
 
 
-class RunRecorder:
+class RunRecorder(StepRecorder):
     """Logs one `ClosedLoop` run to `path` (an `.rrd` file); attach before the first step.
 
     cameras: "front" always, and "side" when the policy uses it.
@@ -138,14 +136,7 @@ class RunRecorder:
     # ---- per step --------------------------------------------------------------------
     def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
         """Keep `record` with the frame captured at its sensing time; `loop.run(on_step=...)` hook."""
-        if self._closed:
-            raise RuntimeError("on_step called on a closed RunRecorder")
-        if loop is not self._loop:
-            raise ValueError("on_step called with a different ClosedLoop than the recorder was built for")
-        frame = self._pending
-        if abs(frame.time_s - record.time_s) > _TIME_TOLERANCE_S:
-            raise RuntimeError(f"frame at t = {frame.time_s:.3f} s but record at t = {record.time_s:.3f} s: "
-                               "on_step must be called once after every loop step")
+        frame = self._frame_for(loop, record)
         self._frames.append(frame)
         self._records.append(record)
         # The state now is the next step's sensing state (see the module docstring).
@@ -172,14 +163,6 @@ class RunRecorder:
             self._rec.disconnect()
         self._tmp_path.unlink(missing_ok=True)
 
-    def __enter__(self) -> RunRecorder:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     # ---- capture ---------------------------------------------------------------------
     def _capture(self) -> _Frame:

@@ -56,7 +56,6 @@ import secrets
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import cv2
@@ -71,6 +70,7 @@ from avsim.perception.base import Detection
 from avsim.recording import ros_types
 from avsim.recording.ros_scene import scene_markers
 from avsim.recording.ros_types import BASE_FRAME, MAP_FRAME, ODOM_FRAME, camera_link, header, optical_frame, time_ns
+from avsim.recording.step_recorder import StepRecorder
 from avsim.world.scene import CAR_PREFIX
 
 IMAGE_FORMATS = ("png", "jpeg")
@@ -81,8 +81,6 @@ RAW_COMMAND_LABELS = ("throttle", "brake", "steer_rad")
 # Box colours (r, g, b, a in 0-1), as in the rerun recording and the video.
 _STOP_RGBA = (1.0, 0.16, 0.16, 1.0)
 _OTHER_RGBA = (1.0, 0.78, 0.0, 1.0)
-# Sensing times of a frame and its record agree to well under one physics step [s].
-_TIME_TOLERANCE_S = 1e-6
 
 
 def image_topic(camera: str) -> str:
@@ -109,7 +107,7 @@ class _Frame:
     angular_body_radps: np.ndarray  # (3,) angular velocity in base_link
 
 
-class BagRecorder:
+class BagRecorder(StepRecorder):
     """Writes one `ClosedLoop` run to `path` (a `.mcap` ROS 2 bag); attach before the first step.
 
     image_format: "png" (lossless, default) or "jpeg" (`jpeg_quality`, 0-100).
@@ -159,14 +157,7 @@ class BagRecorder:
     # ---- per step --------------------------------------------------------------------
     def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
         """Write `record` with the frame captured at its sensing time; `loop.run(on_step=...)` hook."""
-        if self._closed:
-            raise RuntimeError("on_step called on a closed BagRecorder")
-        if loop is not self._loop:
-            raise ValueError("on_step called with a different ClosedLoop than the recorder was built for")
-        frame = self._pending
-        if abs(frame.time_s - record.time_s) > _TIME_TOLERANCE_S:
-            raise RuntimeError(f"frame at t = {frame.time_s:.3f} s but record at t = {record.time_s:.3f} s: "
-                               "on_step must be called once after every loop step")
+        frame = self._frame_for(loop, record)
         self._write_step(frame, record)
         self._pending = self._capture()
 
@@ -196,14 +187,6 @@ class BagRecorder:
         self._closed = True
         shutil.rmtree(self._tmp_dir, ignore_errors=True)
 
-    def __enter__(self) -> BagRecorder:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     # ---- capture ---------------------------------------------------------------------
     def _capture(self) -> _Frame:
