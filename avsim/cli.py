@@ -96,6 +96,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = _config_from_args(args)
+    if args.mcap:
+        from avsim.recording.ros_types import require_rosbags
+
+        require_rosbags()  # before the run, not after it
     output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4, mcap_path=args.mcap,
                           mcap_images=args.mcap_images)
     result, wall_s = output.result, output.wall_s

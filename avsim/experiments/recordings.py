@@ -7,8 +7,9 @@ failed  only the runs whose car failed (`avsim.experiments.failures`: ran the si
         stop, ...), the default for `--rrd`: what a researcher needs to inspect a surprise;
 all     every run.
 
-A `failed` run is known only once it has run, so under `failed` every run runs unrecorded, and
-a failed one runs once more with its recorders. Runs are deterministic, so the second run is
+A `failed` run is known only once it has run, so under `failed` every run runs without that
+recorder, and a failed one runs once more with it (the two flags may differ: `--rrd failed
+--mcap all` records a bag of every run and an .rrd of the failed ones). Runs are deterministic, so the second run is
 the first; its result is compared with the first one's, and a difference fails the run's
 record rather than keep a recording of another run (`avsim.experiments.run_task.execute`).
 Any other run is recorded afterwards, bit for bit, by
@@ -26,6 +27,7 @@ from pathlib import Path
 
 from avsim.errors import ConfigError
 from avsim.experiments.run_task import RunSpec
+from avsim.recording.ros_types import require_rosbags
 
 RECORD_MODES = ("none", "failed", "all")
 DEFAULT_RRD = "failed"
@@ -34,18 +36,13 @@ DEFAULT_MCAP = "none"
 KINDS = {"rrd": ("rrd", ".rrd"), "mcap": ("mcap", ".mcap")}
 
 
-def check_modes(rrd: str, mcap: str) -> str:
-    """The one mode the two ask for ("none" when both are); a one-line ConfigError for a mode not in
-    RECORD_MODES, or two modes that differ where neither is "none" (a run is recorded once, with
-    every recorder asked for, so `--rrd failed --mcap all` is refused)."""
+def check_modes(rrd: str, mcap: str) -> None:
+    """A one-line ConfigError for a mode not in RECORD_MODES, or bags asked for without the ros extra."""
     for flag, mode in (("--rrd", rrd), ("--mcap", mcap)):
         if mode not in RECORD_MODES:
             raise ConfigError(f"{flag} must be one of {', '.join(RECORD_MODES)}, got '{mode}'")
-    wanted = {mode for mode in (rrd, mcap) if mode != "none"}
-    if len(wanted) > 1:
-        raise ConfigError(f"--rrd {rrd} and --mcap {mcap} differ; record both for the same runs "
-                          "(the same mode, or none for one of them)")
-    return wanted.pop() if wanted else "none"
+    if mcap != "none":
+        require_rosbags()  # before the batch, not as an error in each of its runs
 
 
 def recording_flags(rrd: str, mcap: str) -> str:
@@ -63,8 +60,8 @@ def with_recordings(specs: Sequence[RunSpec], out_dir: str | Path, *, rrd: str =
                     mcap: str = DEFAULT_MCAP) -> list[RunSpec]:
     """`specs` with the recording paths and rule that `rrd` and `mcap` (RECORD_MODES) ask for
     (checked by `check_modes`, which a command calls before it writes anything)."""
-    when = check_modes(rrd, mcap)
-    wanted = [kind for kind, mode in (("rrd", rrd), ("mcap", mcap)) if mode != "none"]
+    check_modes(rrd, mcap)
+    wanted = {kind: mode for kind, mode in (("rrd", rrd), ("mcap", mcap)) if mode != "none"}
     if not wanted:
         return list(specs)
     out = Path(out_dir)
@@ -77,5 +74,6 @@ def with_recordings(specs: Sequence[RunSpec], out_dir: str | Path, *, rrd: str =
         if seen[key] > 1:  # two configs under one label (a leaderboard's): the config hash tells them apart
             name = f"{name}__{spec.spec_hash[:8]}"
         paths = {f"{kind}_path": str(out / KINDS[kind][0] / spec.experiment / f"{name}{KINDS[kind][1]}") for kind in wanted}
-        result.append(dataclasses.replace(spec, record_when=when, **paths))
+        whens = {f"{kind}_when": mode for kind, mode in wanted.items()}
+        result.append(dataclasses.replace(spec, **paths, **whens))
     return result

@@ -48,8 +48,8 @@ class RunSpec:
     """One run of a batch: where it comes from, its config, and where its recording goes.
 
     rrd_path, mcap_path: absolute paths of the `.rrd` and `.mcap` to write, or None for none.
-    record_when: "all" records every run; "failed" only a run whose car failed
-    (`avsim.experiments.failures`), by running it again with its recorders.
+    rrd_when, mcap_when: "all" records the run; "failed" only if its car failed
+    (`avsim.experiments.failures`), by running it again with those recorders.
     """
 
     experiment: str
@@ -58,7 +58,8 @@ class RunSpec:
     config: SimConfig
     rrd_path: str | None = None
     mcap_path: str | None = None
-    record_when: str = "all"
+    rrd_when: str = "all"
+    mcap_when: str = "all"
 
     @property
     def spec_hash(self) -> str:
@@ -120,31 +121,31 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     cameras = POLICIES.get(spec.config.policy.name).cameras
     record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),
                   wall_s=round(output.wall_s, 3))
-    if recorded:
-        for key, path in (("rrd", spec.rrd_path), ("mcap", spec.mcap_path)):
-            if path:
-                record[key] = os.path.relpath(path, root) if root else path
+    for key in recorded:
+        path = getattr(spec, f"{key}_path")
+        record[key] = os.path.relpath(path, root) if root else path
     return record
 
 
-def _run(spec: RunSpec) -> tuple[RunOutput, bool]:
-    """The spec's run, recorded as `spec.record_when` asks; (output, whether it was recorded)."""
-    paths = {"rrd_path": spec.rrd_path, "mcap_path": spec.mcap_path}
-    if not any(paths.values()):
-        return run_recorded(spec.config), False
-    if spec.record_when == "all":
-        return run_recorded(spec.config, **paths), True
-    output = run_recorded(spec.config)
-    if not is_failed_run(output.result):
-        return output, False
-    again = run_recorded(spec.config, **paths)
+def _run(spec: RunSpec) -> tuple[RunOutput, list[str]]:
+    """The spec's run, recorded as its `*_when` fields ask; (output, the kinds recorded: "rrd", "mcap").
+
+    The kinds asked for always are recorded on the run; those asked for failed runs only, on a
+    second run when the car failed, which must equal the first.
+    """
+    kinds = [k for k in ("rrd", "mcap") if getattr(spec, f"{k}_path")]
+    always = [k for k in kinds if getattr(spec, f"{k}_when") == "all"]
+    output = run_recorded(spec.config, **{f"{k}_path": getattr(spec, f"{k}_path") for k in always})
+    on_failure = [k for k in kinds if k not in always]
+    if not on_failure or not is_failed_run(output.result):
+        return output, always
+    again = run_recorded(spec.config, **{f"{k}_path": getattr(spec, f"{k}_path") for k in on_failure})
     if again.records != output.records or _canonical(again.result.to_json_dict()) != _canonical(output.result.to_json_dict()):
-        for path in paths.values():
-            if path:
-                Path(path).unlink(missing_ok=True)
+        for k in kinds:
+            Path(getattr(spec, f"{k}_path")).unlink(missing_ok=True)
         raise RuntimeError("the recorded run differs from the unrecorded one (the run is not deterministic); "
-                           "its recording was deleted")
-    return output, True
+                           "its recordings were deleted")
+    return output, kinds
 
 
 def _canonical(payload: dict[str, Any]) -> str:

@@ -256,10 +256,18 @@ def test_jpeg_images_are_smaller_and_decode(tmp_path):
     assert sizes["jpeg"] < sizes["png"]
 
 
-def test_without_the_ros_extra_the_error_names_it(monkeypatch):
+def test_without_the_ros_extra_the_error_names_it_before_any_run(monkeypatch, tmp_path, capsys):
     monkeypatch.setitem(sys.modules, "rosbags.rosbag2", None)  # import fails as if not installed
     with pytest.raises(ConfigError, match=r"avsim\[ros\]"):
         ros_types.require_rosbags()
+    import avsim.runner
+
+    monkeypatch.setattr(avsim.runner, "ClosedLoop", None)  # a run would fail differently
+    for argv in (["run", "--mcap", str(tmp_path / "r.mcap")], ["sweep", "experiments/sweeps/sweep_smoke.toml", "--out", str(tmp_path / "o"), "--mcap", "all"]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and "avsim[ros]" in err, err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_the_foxglove_layout_names_only_topics_and_fields_the_bag_has(bag):
