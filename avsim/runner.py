@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from avsim.config import SimConfig
@@ -33,35 +34,42 @@ class RunOutput:
 
 def run_recorded(config: SimConfig, *, rrd_path: str | os.PathLike | None = None,
                  mp4_path: str | os.PathLike | None = None, mcap_path: str | os.PathLike | None = None,
-                 mcap_images: str = "png") -> RunOutput:
+                 mcap_images: str = "png",
+                 keep_if: Mapping[str, Callable[[RunResult], bool]] | None = None) -> RunOutput:
     """Run `config` to the end, recording it to `rrd_path` (rerun), `mp4_path` (video) and
-    `mcap_path` (a ROS 2 bag, needs avsim[ros]; images as `mcap_images`, png or jpeg) where given."""
+    `mcap_path` (a ROS 2 bag, needs avsim[ros]; images as `mcap_images`, png or jpeg) where given.
+
+    keep_if: recording kind ("rrd", "mp4", "mcap") -> a test of the run's result; a recording
+    whose test fails is discarded when the run ends (its temporary file deleted, nothing written).
+    """
     start = time.perf_counter()
     loop = ClosedLoop(config)
     try:
-        with contextlib.ExitStack() as recorders:
-            hooks = []
+        with contextlib.ExitStack() as stack:
+            recorders = {}  # kind -> recorder
             if rrd_path:
                 from avsim.recording.rerun_log import RunRecorder
 
-                hooks.append(recorders.enter_context(RunRecorder(loop, rrd_path)).on_step)
+                recorders["rrd"] = stack.enter_context(RunRecorder(loop, rrd_path))
             if mp4_path:
                 from avsim.recording.video import VideoRecorder
 
-                hooks.append(recorders.enter_context(VideoRecorder(loop, mp4_path)).on_step)
+                recorders["mp4"] = stack.enter_context(VideoRecorder(loop, mp4_path))
             if mcap_path:
                 from avsim.recording.ros_bag import BagRecorder
 
-                bag = recorders.enter_context(BagRecorder(loop, mcap_path, image_format=mcap_images))
-                hooks.append(bag.on_step)
+                recorders["mcap"] = stack.enter_context(BagRecorder(loop, mcap_path, image_format=mcap_images))
 
             def on_step(loop_: ClosedLoop, record: StepRecord) -> None:
-                for hook in hooks:
-                    hook(loop_, record)
+                for recorder in recorders.values():
+                    recorder.on_step(loop_, record)
 
-            result = loop.run(on_step=on_step if hooks else None)
+            result = loop.run(on_step=on_step if recorders else None)
             if mcap_path:
-                bag.set_result(result)  # the bag's last message: the run's config and result
+                recorders["mcap"].set_result(result)  # the bag's last message: the run's config and result
+            for kind, keep in (keep_if or {}).items():
+                if kind in recorders and not keep(result):
+                    recorders[kind].abort()  # then leaving the block closes nothing
     finally:
         loop.close()
     return RunOutput(result, tuple(loop.records), time.perf_counter() - start)

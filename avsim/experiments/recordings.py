@@ -7,12 +7,10 @@ failed  only the runs whose car failed (`avsim.experiments.failures`: ran the si
         stop, ...), the default for `--rrd`: what a researcher needs to inspect a surprise;
 all     every run.
 
-A `failed` run is known only once it has run, so under `failed` every run runs without that
-recorder, and a failed one runs once more with it (the two flags may differ: `--rrd failed
---mcap all` records a bag of every run and an .rrd of the failed ones). Runs are deterministic, so the second run is
-the first; its result is compared with the first one's, and a difference fails the run's
-record rather than keep a recording of another run (`avsim.experiments.run_task.execute`).
-Any other run is recorded afterwards, bit for bit, by
+Under `failed` every run is recorded, to a temporary file, and the recording is kept only when
+the car failed (`avsim.runner.run_recorded`'s `keep_if`); the others are deleted when their run
+ends. The two flags may differ: `--rrd failed --mcap all` keeps a bag of every run and an .rrd of
+the failed ones. Any other run is recorded afterwards, bit for bit, by
 `avsim run --config FILE --cell CELL --seed K --rrd RUN.rrd` (docs/recording.md).
 
 Files go to `<out>/rrd/<experiment>/<cell>__seed<K>.rrd` (`.mcap` under `<out>/mcap/`), the cell

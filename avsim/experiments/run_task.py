@@ -48,8 +48,8 @@ class RunSpec:
     """One run of a batch: where it comes from, its config, and where its recording goes.
 
     rrd_path, mcap_path: absolute paths of the `.rrd` and `.mcap` to write, or None for none.
-    rrd_when, mcap_when: "all" records the run; "failed" only if its car failed
-    (`avsim.experiments.failures`), by running it again with those recorders.
+    rrd_when, mcap_when: "all" keeps the recording; "failed" only if the run's car failed
+    (`avsim.experiments.failures`).
     """
 
     experiment: str
@@ -128,28 +128,16 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
 
 
 def _run(spec: RunSpec) -> tuple[RunOutput, list[str]]:
-    """The spec's run, recorded as its `*_when` fields ask; (output, the kinds recorded: "rrd", "mcap").
+    """The spec's run, recorded as its `*_when` fields ask; (output, the kinds kept: "rrd", "mcap").
 
-    The kinds asked for always are recorded on the run; those asked for failed runs only, on a
-    second run when the car failed, which must equal the first.
+    Every recorder asked for records the run; one asked for failed runs only is discarded when the
+    car did not fail (`avsim.experiments.failures`).
     """
     kinds = [k for k in ("rrd", "mcap") if getattr(spec, f"{k}_path")]
-    always = [k for k in kinds if getattr(spec, f"{k}_when") == "all"]
-    output = run_recorded(spec.config, **{f"{k}_path": getattr(spec, f"{k}_path") for k in always})
-    on_failure = [k for k in kinds if k not in always]
-    if not on_failure or not is_failed_run(output.result):
-        return output, always
-    again = run_recorded(spec.config, **{f"{k}_path": getattr(spec, f"{k}_path") for k in on_failure})
-    if again.records != output.records or _canonical(again.result.to_json_dict()) != _canonical(output.result.to_json_dict()):
-        for k in kinds:
-            Path(getattr(spec, f"{k}_path")).unlink(missing_ok=True)
-        raise RuntimeError("the recorded run differs from the unrecorded one (the run is not deterministic); "
-                           "its recordings were deleted")
-    return output, kinds
-
-
-def _canonical(payload: dict[str, Any]) -> str:
-    return json.dumps(payload, sort_keys=True)
+    only_failed = {k: is_failed_run for k in kinds if getattr(spec, f"{k}_when") == "failed"}
+    output = run_recorded(spec.config, **{f"{k}_path": getattr(spec, f"{k}_path") for k in kinds}, keep_if=only_failed)
+    failed = is_failed_run(output.result)
+    return output, [k for k in kinds if k not in only_failed or failed]
 
 
 def _blank_record(spec: RunSpec) -> dict[str, Any]:
