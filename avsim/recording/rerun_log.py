@@ -53,7 +53,6 @@ from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
 from avsim.metrics import StepRecord
 from avsim.outputs import temporary_path
-from avsim.perception.base import Detection
 from avsim.recording import paths
 from avsim.recording.blueprint import default_blueprint
 from avsim.recording.static_scene import log_pinhole, log_world

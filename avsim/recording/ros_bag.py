@@ -50,7 +50,6 @@ leaves no file at `path`.
 from __future__ import annotations
 
 import json
-import math
 import os
 import secrets
 import shutil
