@@ -106,6 +106,7 @@ class RunRecorder(StepRecorder):
         if not 0 <= jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [0, 100], got {jpeg_quality}")
         self._loop = loop
+        self._share_frames(loop)
         self._path = Path(path)
         self._jpeg_quality = jpeg_quality
         self.cameras: tuple[str, ...] = ("front", *(c for c in loop.policy.cameras if c != "front"))

@@ -128,6 +128,7 @@ class BagRecorder(StepRecorder):
         self._store = ros_types.typestore()
         self._types = self._store.types
         self._loop = loop
+        self._share_frames(loop)
         self._format = image_format
         self._encode_params = [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality] if image_format == "jpeg" else []
         self.cameras: tuple[str, ...] = ("front", *(c for c in loop.policy.cameras if c != "front"))

@@ -31,6 +31,12 @@ class StepRecorder:
     _closed: bool
     _pending: Any
 
+    @staticmethod
+    def _share_frames(loop: ClosedLoop) -> None:
+        """Let the recorder's render of each sensing state and the perception's share one draw
+        (`CameraRig.render_rgb`): in a closed-loop run nothing changes the model's appearance."""
+        loop.rig.reuse_last_frame = True
+
     def _frame_for(self, loop: ClosedLoop, record: StepRecord) -> _Timed:
         """The pending frame, checked to be of `record`'s sensing time in the recorder's own loop."""
         name = type(self).__name__

@@ -110,6 +110,7 @@ class VideoRecorder(StepRecorder):
         if loop.records:
             raise ValueError("attach the VideoRecorder before the loop's first step")
         self._loop = loop
+        self._share_frames(loop)
         self._path = Path(path)
         if self._path.suffix.lower() != ".mp4":
             raise ConfigError(f"--mp4 expects a path ending in .mp4, got '{self._path}'")

@@ -78,10 +78,12 @@ class CameraPose:
         return float(-(self.rotation[:, 2] @ (np.asarray(point_world_m) - self.position_m)))
 
 
-def _render_key(data: mujoco.MjData) -> bytes:
-    """What a frame is drawn from: the time and every geom's, camera's and light's pose."""
+def _render_key(model: mujoco.MjModel, data: mujoco.MjData) -> bytes:
+    """What a frame is drawn from: the time, every geom's, camera's and light's pose, and every
+    geom's group and colour (which hide or tint it)."""
     return b"".join(np.ascontiguousarray(a).tobytes() for a in (
-        np.float64(data.time), data.geom_xpos, data.geom_xmat, data.cam_xpos, data.cam_xmat, data.light_xpos, data.light_xdir))
+        np.float64(data.time), data.geom_xpos, data.geom_xmat, data.cam_xpos, data.cam_xmat, data.light_xpos, data.light_xdir,
+        model.geom_group, model.geom_rgba))
 
 
 class CameraRig:
@@ -99,7 +101,8 @@ class CameraRig:
         self._option = mujoco.MjvOption()
         self._option.geomgroup[EGO_GROUP] = 0
         self._option.geomgroup[3] = 0
-        self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (poses, frame): `render_rgb`
+        self.reuse_last_frame = False  # see `render_rgb`
+        self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
 
     def intrinsics(self, camera: str) -> Intrinsics:
         return intrinsics_for(camera, self._config)
@@ -111,20 +114,24 @@ class CameraRig:
     def render_rgb(self, data: mujoco.MjData, camera: str) -> np.ndarray:
         """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array).
 
-        The last frame of each camera is kept with the poses it was drawn from, and asking
-        again for the same camera and poses returns a copy of it instead of drawing it again:
-        a recorder and the perception both ask for each sensing state's frame, and a frame is
-        a function of the poses alone (the scene and the options never change).
+        With `reuse_last_frame` on, the last frame of each camera is kept with what it was drawn
+        from (the poses, and the geoms' groups and colours), and asking again for the same camera
+        and state returns a copy of it instead of drawing it again: in a recorded run a recorder
+        and the perception both ask for each sensing state's frame. It is off by default, because
+        a caller may change the model's appearance in other ways between two renders of one state
+        (a texture, a light); the recorders turn it on for their run, in which nothing does.
         """
-        key = _render_key(data)
+        key = _render_key(self._model, data) if self.reuse_last_frame else None
         last = self._last_rgb.get(camera)
-        if last is not None and last[0] == key:
+        if key is not None and last is not None and last[0] == key:
             return last[1].copy()
         if self._rgb is None:
             self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False, fog=self._fog)
         frame = self._rgb.render(data, self._ids[camera], self._option).copy()
-        self._last_rgb[camera] = (key, frame)
-        return frame.copy()
+        if key is not None:
+            self._last_rgb[camera] = (key, frame)
+            return frame.copy()
+        return frame
 
     def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
         """Model geom id per pixel, (H * s, W * s) int32 with s = seg_supersample; -1 for background."""

@@ -131,6 +131,7 @@ def test_asking_again_for_the_same_state_gives_the_same_frame_and_a_new_state_a_
     """render_rgb keeps each camera's last frame; it must never hand back a stale one."""
     loop = ClosedLoop(make_config(scenario={"start_dist_m": 60.0}))
     fresh = ClosedLoop(make_config(scenario={"start_dist_m": 60.0}))
+    loop.rig.reuse_last_frame = fresh.rig.reuse_last_frame = True
     try:
         first = loop.rig.render_rgb(loop.data, "front")
         again = loop.rig.render_rgb(loop.data, "front")
@@ -146,6 +147,16 @@ def test_asking_again_for_the_same_state_gives_the_same_frame_and_a_new_state_a_
             # Drawn by a rig that draws this state for the first time: the same pixels, bit for bit.
             assert np.array_equal(moved, fresh.rig.render_rgb(fresh.data, "front"))
         assert not np.array_equal(moved, first)
+        # A change of the model's appearance at the same state (the view bank hides the sign's face
+        # this way) is a new frame, not the kept one.
+        sign = loop.scene.stop_sign
+        face = loop.model.geom(sign.face_geom).id
+        group = int(loop.model.geom_group[face])
+        loop.model.geom_group[face] = 5
+        hidden = loop.rig.render_rgb(loop.data, "front")
+        loop.model.geom_group[face] = group
+        assert not np.array_equal(hidden, moved)
+        assert np.array_equal(loop.rig.render_rgb(loop.data, "front"), moved)
     finally:
         loop.close()
         fresh.close()
