@@ -14,7 +14,7 @@ export MUJOCO_GL ?= egl
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev,ray,onnx]'
+	$(PY) -m pip install --quiet -e '.[dev,ray,onnx,ros]'
 	$(PY) -m avsim.perception.coco.fetch
 	$(PY) -m avsim.perception.yolo.fetch
 	touch $@

@@ -22,6 +22,7 @@ from typing import Any
 from avsim.boundary import run_guarded
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
+from avsim.cli_recording import add_recording_modes
 from avsim.config import LoopConfig, ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.library_output import quiet_rust_logs, route_mujoco_warnings_to_log
@@ -72,7 +73,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from avsim.runner import run_recorded
     from avsim.summary import format_summary
 
-    if args.config:
+    if args.config and Path(args.config).suffix == ".jsonl":
+        from avsim.config import with_overrides
+        from avsim.experiments.rerun_record import config_from_results
+
+        # A batch's results file: the run's resolved config, as it ran; the flags apply on top.
+        overrides = _flag_overrides(args)
+        seed = args.seed if args.seed is not None else 0
+        config = with_overrides(config_from_results(args.config, args.cell, seed), overrides)
+    elif args.config:
         from avsim.config import with_overrides
         from avsim.experiments.spec import load_experiment
 
@@ -92,7 +101,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from avsim.experiments.spec import check_run_names
 
     check_run_names(config)  # every name and the sign texture, before the scene is built
-    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4)
+    if args.mcap:
+        from avsim.recording.ros_types import require_rosbags
+
+        require_rosbags()  # before the run, not after it
+    output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4, mcap_path=args.mcap,
+                          mcap_images=args.mcap_images)
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
     if args.json is not None:
@@ -106,9 +120,11 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
-                    backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes)
+                    backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
+                    rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "report.md").read_text())
-    print(f"wrote {out}/report.md, runs.jsonl, figures and one .rrd per run under {out}/rrd/")
+    print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd_mode}, --mcap {args.mcap_mode}) "
+                                                             f"under {out}/rrd/ and {out}/mcap/" if args.rrd_mode != "none" or args.mcap_mode != "none" else ""))
     return 0
 
 
@@ -117,7 +133,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = load_sweep(args.file, yes=args.yes)  # checks the size, then every grid value, before anything runs
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
-                    backend=args.backend, address=args.address, batch=args.batch)
+                    backend=args.backend, address=args.address, batch=args.batch, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "summary.md").read_text())
     print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
     return 0
@@ -129,7 +145,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
 
     board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
-                          progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch)
+                          progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch,
+                          rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "leaderboard.md").read_text())
     print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
     return 0
@@ -163,6 +180,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         from avsim.bench_profile import run_profile
 
         run_profile(quick=args.quick)
+        return 0
+    if args.recording:
+        from avsim.recording.overhead import print_recording_overhead
+
+        print_recording_overhead(repeats=1 if args.quick else 3)
         return 0
     from avsim.bench import run_benchmarks
 
@@ -230,6 +252,26 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     config = with_overrides(SimConfig(), merge_overrides(flags, parse_set(args.set))).perception
     for record in detect_images(config, [Path(p) for p in args.images]):
         print(json.dumps(record), flush=True)
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    import json
+
+    from avsim.metrics import write_text_atomic
+    from avsim.recording.ros_replay import replay
+
+    overrides = parse_set(args.set).get("perception", {})
+    if args.perception:
+        overrides = {**overrides, "kind": args.perception}
+    lines = (json.dumps(record) for record in replay(args.bag, overrides))
+    if args.out is None:
+        for line in lines:
+            print(line, flush=True)
+        return 0
+    text = "".join(line + "\n" for line in lines)  # all or nothing: written once every image is done
+    write_text_atomic(args.out, text)
+    print(f"wrote {text.count(chr(10))} image records to {args.out}")
     return 0
 
 
@@ -316,8 +358,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
     add_output_argument(run, "--mp4", kind=FILE, suffix=".mp4",
                         help="write a video of the front camera with the detections, speed and brake to this .mp4 file")
-    run.add_argument("--config", help="experiment file (experiments/*.toml): run one of its cells; the flags above apply on top")
-    run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell)")
+    add_output_argument(run, "--mcap", kind=FILE, suffix=".mcap",
+                        help="write the run as a ROS 2 bag in MCAP storage (images, camera_info, detections, odom, tf, "
+                             "commands; needs avsim[ros]; docs/ros.md)")
+    run.add_argument("--mcap-images", choices=("png", "jpeg"), default="png",
+                     help="how --mcap stores camera images: png (lossless, the default) or jpeg (quality 90, smaller)")
+    run.add_argument("--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
+                                      "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")
+    run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell of an experiment file)")
     run.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
@@ -336,6 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
+    add_recording_modes(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
     swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
@@ -354,6 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
     swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
+    add_recording_modes(swp)
     swp.set_defaults(func=_cmd_sweep)
 
     board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "
@@ -369,6 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_recording_modes(board)
     board.set_defaults(func=_cmd_leaderboard)
 
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
@@ -389,10 +440,25 @@ def build_parser() -> argparse.ArgumentParser:
                         help="override any config key, e.g. --set perception.coco_input=resize (repeatable)")
     detect.set_defaults(func=_cmd_detect)
 
+    rep_bag = sub.add_parser("replay", help="run a perception over a ROS bag's camera images; one JSON line per image",
+                             description="Run a pixel perception over every sensor_msgs/CompressedImage of a ROS bag "
+                                         "(.mcap, a ROS 2 bag folder or a ROS 1 .bag; needs avsim[ros]), as the closed "
+                                         "loop runs it (region of interest, range limit). One JSON line per image: topic, "
+                                         "camera, stamp_ns, width, height, perception, detections. The settings start from "
+                                         "the bag's own avsim run, if it is one (docs/ros.md).")
+    rep_bag.add_argument("bag", help="the bag: an .mcap file or a bag folder")
+    rep_bag.add_argument("--perception", help="detector, coco, ensemble or onnx (default: the bag's own, or detector)")
+    rep_bag.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                         help="override a perception key, e.g. --set perception.min_confidence=0.3 (repeatable)")
+    add_output_argument(rep_bag, "--out", kind=FILE, help="write the JSON lines to this file instead of printing them")
+    rep_bag.set_defaults(func=_cmd_replay)
+
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.add_argument("--profile", action="store_true",
                        help="where one run's and one batch's time goes, stage by stage, beside the speed targets")
+    bench.add_argument("--recording", action="store_true",
+                       help="only what --rrd and --mcap add to a run: wall time and file size (docs/recording.md)")
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
     add_attack_commands(sub)

@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 from avsim.cli_overrides import parse_set
+from avsim.cli_recording import add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.outputs import FILE, FOLDER, add_output_argument
@@ -112,7 +113,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
 
         protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
     csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
-                                       protocol=protocol, workers=args.workers)
+                                       protocol=protocol, workers=args.workers, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print(f"wrote {csv_path} and {plot_path}")
     return 0
 
@@ -179,4 +180,5 @@ def add_attack_commands(sub) -> None:
     sw.add_argument("--workers", type=int, default=1, choices=range(1, 65), metavar="N",
                     help="closed-loop runs at once (default 1)")
     add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
+    add_recording_modes(sw, "with --closed-loop: ")
     sw.set_defaults(func=_cmd_attack_sweep)

@@ -1,7 +1,7 @@
 """Many closed-loop runs in one process, stepped in lock-step: one network call per control tick
 over every car's camera frames.
 
-    outputs = run_lockstep([config_a, config_b, ...], rrd_paths=[None, "b.rrd", ...])
+    outputs = run_lockstep([config_a, config_b, ...], recordings=[{}, {"rrd_path": "b.rrd"}, ...])
     outputs[i]    # RunOutput of configs[i], or the exception that ended it
 
 Each tick, every car that is still running renders its cameras (`FramePerception.frame_requests`);
@@ -23,38 +23,43 @@ evenly among the cars that took part in it.
 from __future__ import annotations
 
 import contextlib
-import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 from avsim.config import SimConfig
 from avsim.loop import ClosedLoop
 from avsim.perception.base import Detection
 from avsim.perception.factory import FrameDetectorCache
 from avsim.perception.frame import FramePerception, FrameRequest, detect_many
-from avsim.runner import RunOutput, attach_recorders
+from avsim.metrics import RunResult
+from avsim.plausibility import check_meaningful
+from avsim.runner import RunOutput, finish_recorders, open_recorders, step_hook
 
 
 class _Car:
-    """One run of the batch: its loop, its recorders' hook and the wall time charged to it [s]."""
+    """One run of the batch: its loop, its recorders and their hook, and the wall time charged to it [s]."""
 
-    def __init__(self, loop: ClosedLoop, stack: contextlib.ExitStack, rrd_path: str | os.PathLike | None) -> None:
+    def __init__(self, loop: ClosedLoop, stack: contextlib.ExitStack, recording: Mapping[str, Any]) -> None:
         self.loop = loop
         self.stack = stack
-        self.on_step = attach_recorders(loop, stack, rrd_path=rrd_path)
+        self.keep_if: Mapping[str, Callable[[RunResult], bool]] | None = recording.get("keep_if")
+        self.recorders = open_recorders(loop, stack, **{k: v for k, v in recording.items() if k != "keep_if"})
+        self.on_step = step_hook(self.recorders)
         self.wall_s = 0.0
 
 
-def run_lockstep(configs: Sequence[SimConfig], *, rrd_paths: Sequence[str | os.PathLike | None] | None = None
+def run_lockstep(configs: Sequence[SimConfig], *, recordings: Sequence[Mapping[str, Any]] | None = None
                  ) -> list[RunOutput | Exception]:
     """Run every config to the end in lock-step; returns, per config, its `RunOutput` or the
     exception that ended it (a run that fails does not stop the others).
 
-    rrd_paths: per config, a rerun recording to write, or None.
+    recordings: per config, `run_recorded`'s recording arguments (rrd_path, mp4_path, mcap_path,
+    mcap_images, keep_if), or {} for none.
     """
-    rrd_paths = list(rrd_paths) if rrd_paths is not None else [None] * len(configs)
-    if len(rrd_paths) != len(configs):
-        raise ValueError(f"need one rrd path (or None) per config: {len(rrd_paths)} for {len(configs)} configs")
+    recordings = list(recordings) if recordings is not None else [{}] * len(configs)
+    if len(recordings) != len(configs):
+        raise ValueError(f"need one recording (or {{}}) per config: {len(recordings)} for {len(configs)} configs")
     detectors = FrameDetectorCache()
     outputs: list[RunOutput | Exception | None] = [None] * len(configs)
     cars: dict[int, _Car] = {}
@@ -62,7 +67,7 @@ def run_lockstep(configs: Sequence[SimConfig], *, rrd_paths: Sequence[str | os.P
         for index, config in enumerate(configs):
             started = time.perf_counter()
             try:
-                car = _start(config, detectors, rrd_paths[index])
+                car = _start(config, detectors, recordings[index])
             except Exception as exc:  # noqa: BLE001 - this run failed; the batch goes on
                 outputs[index] = exc
                 continue
@@ -86,11 +91,12 @@ def run_lockstep(configs: Sequence[SimConfig], *, rrd_paths: Sequence[str | os.P
     return [output for output in outputs if output is not None]
 
 
-def _start(config: SimConfig, detectors: FrameDetectorCache, rrd_path: str | os.PathLike | None) -> _Car:
+def _start(config: SimConfig, detectors: FrameDetectorCache, recording: Mapping[str, Any]) -> _Car:
+    check_meaningful(config)  # as `run_recorded` does: a scenario that cannot mean what it says never runs
     loop = ClosedLoop(config, detectors)
     stack = contextlib.ExitStack()
     try:
-        return _Car(loop, stack, rrd_path)
+        return _Car(loop, stack, recording)
     except BaseException:
         stack.close()
         loop.close()
@@ -149,6 +155,7 @@ def _finish(car: _Car) -> RunOutput | Exception:
     loop = car.loop
     try:
         result = loop.result(loop.stopped)
+        finish_recorders(car.recorders, result, car.keep_if)
         car.stack.close()
     except Exception as exc:  # noqa: BLE001
         _abandon(car)

@@ -162,7 +162,7 @@ def profile_run(config: Any, *, rrd_path: str | None = None) -> RunProfile:
     """Run `config` once with every stage timed (and recorded to `rrd_path` if given). The run's
     result is the unprofiled run's: the wrappers only read the clocks."""
     from avsim.loop import ClosedLoop
-    from avsim.runner import attach_recorders
+    from avsim.runner import open_recorders, step_hook
 
     timer = StageTimer()
     started, cpu_started = time.perf_counter(), time.process_time()
@@ -171,7 +171,7 @@ def profile_run(config: Any, *, rrd_path: str | None = None) -> RunProfile:
     try:
         with timer.running(), contextlib.ExitStack() as recorders:
             instrument(timer, loop)
-            hook = attach_recorders(loop, recorders, rrd_path=rrd_path)
+            hook = step_hook(open_recorders(loop, recorders, rrd_path=rrd_path))
             result = loop.run(on_step=None if hook is None else _timed_hook(timer, hook))
     finally:
         loop.close()

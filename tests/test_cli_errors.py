@@ -208,7 +208,7 @@ def test_every_output_argument_of_every_subcommand_is_declared_and_so_checked():
     `main` checks it before any work (this walks every parser, new ones included)."""
     from avsim.outputs import declared_outputs
 
-    output_like = {"out", "json", "rrd", "mp4", "output"}
+    output_like = {"out", "json", "rrd", "mp4", "mcap", "output"}
     for name, parser in cli.iter_parsers(cli.build_parser()):
         declared = {spec.dest for spec in declared_outputs(parser)}
         for action in parser._actions:

@@ -19,6 +19,7 @@ from typing import Any
 from avsim.attacks.success import Success, success
 from avsim.config import with_overrides
 from avsim.experiments.batch import run_batch
+from avsim.experiments.recordings import with_recordings
 from avsim.experiments.results_file import JsonlWriter
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import Cell, Experiment, load_experiment
@@ -48,7 +49,8 @@ def protocol_specs(protocol: Experiment, signs: Mapping[str, str]) -> list[RunSp
 
 
 def closed_loop_success(protocol: Experiment, signs: Mapping[str, str], runs_jsonl: Path,
-                        workers: int = 1, progress: bool = True) -> dict[str, Success]:
+                        workers: int = 1, progress: bool = True, rrd: str = "none",
+                        mcap: str = "none") -> dict[str, Success]:
     """Run the protocol past every sign (and the clean one, labelled "clean"); label -> Success.
 
     Every run's record is written to `runs_jsonl` (replaced) as it finishes, in the batch format
@@ -56,7 +58,7 @@ def closed_loop_success(protocol: Experiment, signs: Mapping[str, str], runs_jso
     happened to finish would not be the rate.
     """
     all_signs = {CLEAN_CELL: "clean", **{label: sign for label, sign in signs.items() if label != CLEAN_CELL}}
-    specs = protocol_specs(protocol, all_signs)
+    specs = with_recordings(protocol_specs(protocol, all_signs), runs_jsonl.parent, rrd=rrd, mcap=mcap)
     runs_jsonl.unlink(missing_ok=True)  # this sweep's runs only, never appended to an earlier sweep's
     writer = JsonlWriter(runs_jsonl)
     records = run_batch(specs, workers=workers, on_record=writer.append, progress=progress,

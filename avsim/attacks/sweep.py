@@ -29,13 +29,14 @@ BUDGET_KEY = {"chen": "eps", "lu_v2": "eps", "lu_v3": "eps", "yang": "eps_peak",
 
 def budget_sweep(method: str, budgets: list[float], out_dir: Path, steps: int, seed: int = 0,
                  weights_path: str = "", detector: str = "detector", protocol: Experiment | None = None,
-                 workers: int = 1, progress: bool = True) -> tuple[Path, Path]:
+                 workers: int = 1, progress: bool = True, rrd: str = "failed", mcap: str = "none") -> tuple[Path, Path]:
     """Write OUT/sweep_METHOD.csv and .png; textures land in OUT/textures/ (each with its record,
     so a closed-loop sweep can drive past them: `experiments/sweeps/speed_sweep.toml`).
 
     protocol: an attack-success experiment file with a "clean" cell; when given, every texture
     and the clean sign are driven past under it (`workers` runs at once), the runs are written
     to OUT/runs_METHOD.jsonl, and the CSV gains a row for the clean sign and the success columns.
+    rrd, mcap: which of those runs are recorded (`avsim.experiments.recordings`), under OUT/rrd/, OUT/mcap/.
     """
     key = BUDGET_KEY[method]
     for budget in budgets:
@@ -56,7 +57,7 @@ def budget_sweep(method: str, budgets: list[float], out_dir: Path, steps: int, s
         print(rows[-1], flush=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     if protocol is not None:
-        rows = _with_success(rows, key, protocol, out_dir / f"runs_{method}.jsonl", workers, progress)
+        rows = _with_success(rows, key, protocol, out_dir / f"runs_{method}.jsonl", workers, progress, (rrd, mcap))
     csv_path = out_dir / f"sweep_{method}.csv"
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=list(rows[-1]))
@@ -67,7 +68,7 @@ def budget_sweep(method: str, budgets: list[float], out_dir: Path, steps: int, s
 
 
 def _with_success(rows: list[dict], key: str, protocol: Experiment, runs_jsonl: Path, workers: int,
-                  progress: bool) -> list[dict]:
+                  progress: bool, recordings: tuple[str, str]) -> list[dict]:
     """The rows with the clean sign's row first and every row's closed-loop success columns."""
     threshold = SimConfig().policy.conf_threshold
     clean_report = evaluate_texture("clean", "town07", ("standard",), threshold)
@@ -75,7 +76,7 @@ def _with_success(rows: list[dict], key: str, protocol: Experiment, runs_jsonl: 
              "mean_conf_front": round(clean_report.mean_conf("front"), 4),
              "first_detection_front_m": clean_report.first_detection_m["front"]["standard"], "texture": "clean"}
     labels = {f"{key}={row[key]:g}": row["texture"] for row in rows}
-    results = closed_loop_success(protocol, labels, runs_jsonl, workers, progress)
+    results = closed_loop_success(protocol, labels, runs_jsonl, workers, progress, rrd=recordings[0], mcap=recordings[1])
     rows = [clean, *rows]
     for row, label in zip(rows, ["clean", *labels]):
         row.update(_success_columns(results[label]))

@@ -20,34 +20,38 @@ from avsim.experiments.batch import check_backend, resolve_workers, software_ver
 from avsim.experiments.leaderboard import Leaderboard, unique_specs
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
+from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.metrics import write_json_atomic
 
 
 def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
                     resume: bool = False, progress: bool = True, backend: str = "local",
-                    address: str | None = None, batch: int = DEFAULT_BATCH) -> Path:
+                    address: str | None = None, batch: int = DEFAULT_BATCH, rrd: str = DEFAULT_RRD,
+                    mcap: str = DEFAULT_MCAP) -> Path:
     """Run the board's matrix into `out_dir` (`avsim.experiments.leaderboard`'s docstring lists what
-    it writes there); returns `out_dir`."""
+    it writes there); returns `out_dir`. rrd, mcap: which runs are recorded, under OUT/rrd/ and
+    OUT/mcap/ (`avsim.experiments.recordings`)."""
     check_backend(backend, address)
+    check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim leaderboard {board.path} --out {out}", results_name=RESULTS_FILE):
         return _run_leaderboard_locked(board, out, quick=quick, workers=workers, resume=resume, progress=progress,
-                                       backend=backend, address=address)
+                                       backend=backend, address=address, batch=batch, rrd=rrd, mcap=mcap)
 
 
 def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, workers: int | None, resume: bool,
-                            progress: bool, backend: str, address: str | None) -> Path:
+                            progress: bool, backend: str, address: str | None, batch: int, rrd: str, mcap: str) -> Path:
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
     runs = board.runs(quick)
-    specs = unique_specs(board, runs)
+    specs = with_recordings(unique_specs(board, runs), out, rrd=rrd, mcap=mcap)
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
                f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
-    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)])
+    command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)]) + recording_flags(rrd, mcap)
 
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()

@@ -212,7 +212,9 @@ def write_report(out_dir: Path, experiments: Sequence[Experiment], records: Sequ
         f"with {manifest['workers']} worker(s) in {manifest['wall_s'] / 60:.1f} min. Versions: "
         + ", ".join(f"{k} {v}" for k, v in manifest["versions"].items()) + ".", "",
         "Each cell is run over its seeds (start position and lighting vary) and reported as mean ± std. "
-        "Every run has a rerun recording under `rrd/` and a line in `runs.jsonl`.", "",
+        "Every run has a line in `runs.jsonl`; its `rrd` key names its rerun recording where one was asked for "
+        "(`--rrd`, by default the runs whose car failed), and any run is recorded afterwards, bit for bit, with "
+        "`avsim run --config experiments/FILE.toml --cell CELL --seed K --rrd RUN.rrd` (docs/recording.md).", "",
     ]
     if records and len(failed) == len(records):
         lines += [f"**Every run failed** ({len(failed)} of {len(records)}): no table below states an outcome. "

@@ -5,7 +5,9 @@
 writes `results/<timestamp>/`:
     runs.jsonl            one record per run (see `avsim.experiments.run_task`), sorted by
                           experiment, cell and seed once the batch is over
-    rrd/<experiment>/     one rerun recording per run (`rerun FILE.rrd` opens it)
+    rrd/<experiment>/     rerun recordings of the runs `rrd` asks for (default: the failed ones,
+                          `avsim.experiments.recordings`; `rerun FILE.rrd` opens one)
+    mcap/<experiment>/    ROS 2 bags of the runs `mcap` asks for (default none)
     experiments/          the experiment files as they were run
     manifest.json         command, versions, workers, wall time, failures
     report.md, *.png      the study's tables beside ours, and the figures
@@ -26,6 +28,7 @@ from pathlib import Path
 from avsim.errors import ConfigError, Interrupted, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, run_batch, software_versions
+from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.output_lock import locked_output
@@ -62,19 +65,10 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     return experiments
 
 
-def specs_for(experiments: list[Experiment], out_dir: Path) -> list[RunSpec]:
-    """Every (experiment, cell, seed) as a spec, each recorded to its own .rrd under `out_dir/rrd/`."""
-    specs = []
-    for experiment in experiments:
-        for run in experiment.runs():
-            rrd = out_dir / "rrd" / experiment.path.stem / f"{slug(run.cell_name)}__seed{run.seed}.rrd"
-            specs.append(RunSpec(experiment.path.stem, run.cell_name, run.seed, run.config, str(rrd)))
-    return specs
-
-
-def slug(name: str) -> str:
-    """A cell name as a file name: "attacked sign, adjusted" -> "attacked_sign_adjusted"."""
-    return "_".join("".join(c if c.isalnum() else " " for c in name.lower()).split())
+def specs_for(experiments: list[Experiment]) -> list[RunSpec]:
+    """Every (experiment, cell, seed) as a spec."""
+    return [RunSpec(experiment.path.stem, run.cell_name, run.seed, run.config)
+            for experiment in experiments for run in experiment.runs()]
 
 
 def _fresh_dir(root: Path, stamp: str) -> Path:
@@ -89,9 +83,12 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
 
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
-              address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False) -> Path:
+              address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False,
+              rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
+
+    rrd, mcap: which runs are recorded, "none", "failed" or "all" (`avsim.experiments.recordings`).
 
     backend, address: where the runs go (`avsim.experiments.batch.run_batch`); checked, like
     the experiment files and `workers`, before the results folder is made.
@@ -99,6 +96,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     if everything and experiment_paths:
         raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
     experiments = load_study(experiment_paths, quick, everything, yes)
+    check_modes(rrd, mcap)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
     started = time.perf_counter()
@@ -107,16 +105,17 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no folder.
     with locked_output(out, "avsim reproduce", results_name="runs.jsonl"):
         return _reproduce_into(out, experiments, quick=quick, workers=workers, progress=progress, backend=backend,
-                               address=address, started=started, started_at=started_at)
+                               address=address, started=started, started_at=started_at, batch=batch, rrd=rrd, mcap=mcap)
 
 
 def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, workers: int | None, progress: bool,
-                    backend: str, address: str | None, started: float, started_at: dt.datetime) -> Path:
+                    backend: str, address: str | None, started: float, started_at: dt.datetime, batch: int, rrd: str,
+                    mcap: str) -> Path:
     from avsim.experiments.report import write_report
 
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
-    specs = specs_for(experiments, out)
+    specs = with_recordings(specs_for(experiments), out, rrd=rrd, mcap=mcap)
     writer = JsonlWriter(out / "runs.jsonl")
     finished = 0
 
@@ -138,7 +137,8 @@ def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, wo
     manifest = {
         "command": " ".join(part for part in ("avsim reproduce", "--quick" if quick else "",
                                               f"--backend {backend}" if backend != "local" else "",
-                                              f"--address {address}" if address else "") if part),
+                                              f"--address {address}" if address else "",
+                                              recording_flags(rrd, mcap).strip()) if part),
         "backend": backend,
         "address": address,
         "started_at": started_at.isoformat(timespec="seconds"),

@@ -15,7 +15,8 @@ A record (a JSON-ready dict, one line of `runs.jsonl`):
     trace                     per control step: sign_dist_m [m, bumper to sign], speed_mps,
                               brake [0..1], and per camera the policy rendered, <camera>_conf:
                               its best stop-sign confidence (0 when it reported none)
-    rrd                       path of the run's rerun recording, relative to the batch folder
+    rrd, mcap                 paths of the run's rerun recording and ROS 2 bag, relative to the batch
+                              folder, or null where none was asked for (`avsim.experiments.recordings`)
     wall_s                    wall-clock time of the run [s]
 """
 
@@ -33,6 +34,7 @@ from typing import Any
 from avsim.config import NO_SIGN, SimConfig
 from avsim.control.policies import POLICIES, STOP_CLASS
 from avsim.errors import ConfigError
+from avsim.experiments.failures import is_failed_run
 from avsim.metrics import StepRecord
 from avsim.lockstep import run_lockstep
 from avsim.runner import RunOutput, run_recorded
@@ -46,7 +48,9 @@ _TRACE_DECIMALS = 4
 class RunSpec:
     """One run of a batch: where it comes from, its config, and where its recording goes.
 
-    rrd_path: absolute path of the `.rrd` to write, or None for no recording.
+    rrd_path, mcap_path: absolute paths of the `.rrd` and `.mcap` to write, or None for none.
+    rrd_when, mcap_when: "all" keeps the recording; "failed" only if the run's car failed
+    (`avsim.experiments.failures`).
     """
 
     experiment: str
@@ -54,6 +58,9 @@ class RunSpec:
     seed: int
     config: SimConfig
     rrd_path: str | None = None
+    mcap_path: str | None = None
+    rrd_when: str = "all"
+    mcap_when: str = "all"
 
     @property
     def spec_hash(self) -> str:
@@ -105,7 +112,7 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     root: the batch folder; the record's `rrd` path is written relative to it.
     """
     try:
-        output: RunOutput | Exception = run_recorded(spec.config, rrd_path=spec.rrd_path)
+        output: RunOutput | Exception = run_recorded(spec.config, **recording_of(spec))
     except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
         output = exc
     return record_of(spec, output, root)
@@ -115,7 +122,7 @@ def execute_many(specs: Sequence[RunSpec], root: str | None = None) -> list[dict
     """Run the specs in lock-step in this process (`avsim.lockstep`: one network call per control
     tick over all their cars) and return their records, in order: each the record `execute` gives
     that spec alone, `wall_s` aside (a run's share of the batch's time)."""
-    outputs = run_lockstep([spec.config for spec in specs], rrd_paths=[spec.rrd_path for spec in specs])
+    outputs = run_lockstep([spec.config for spec in specs], recordings=[recording_of(spec) for spec in specs])
     return [record_of(spec, output, root) for spec, output in zip(specs, outputs)]
 
 
@@ -130,14 +137,31 @@ def record_of(spec: RunSpec, output: RunOutput | Exception, root: str | None = N
     cameras = POLICIES.get(spec.config.policy.name).cameras
     record.update(result=output.result.to_json_dict(), trace=trace_of(output.records, cameras),
                   wall_s=round(output.wall_s, 3))
-    if spec.rrd_path:
-        record["rrd"] = os.path.relpath(spec.rrd_path, root) if root else spec.rrd_path
+    failed = is_failed_run(output.result)
+    for kind in _recorded_kinds(spec):
+        if getattr(spec, f"{kind}_when") == "all" or failed:  # the recordings `recording_of` kept
+            path = getattr(spec, f"{kind}_path")
+            record[kind] = os.path.relpath(path, root) if root else path
     return record
+
+
+def _recorded_kinds(spec: RunSpec) -> list[str]:
+    return [kind for kind in ("rrd", "mcap") if getattr(spec, f"{kind}_path")]
+
+
+def recording_of(spec: RunSpec) -> dict[str, Any]:
+    """`run_recorded`'s recording arguments for the spec, as its `*_when` fields ask: every recorder
+    asked for records the run; one asked for failed runs only is discarded when the car did not
+    fail (`avsim.experiments.failures`)."""
+    kinds = _recorded_kinds(spec)
+    only_failed = {kind: is_failed_run for kind in kinds if getattr(spec, f"{kind}_when") == "failed"}
+    return {**{f"{kind}_path": getattr(spec, f"{kind}_path") for kind in kinds}, "keep_if": only_failed}
 
 
 def _blank_record(spec: RunSpec) -> dict[str, Any]:
     return {"experiment": spec.experiment, "cell": spec.cell, "seed": spec.seed, "spec_hash": spec.spec_hash,
-            "status": "ok", "error": None, "result": None, "trace": None, "rrd": None, "wall_s": None}
+            "status": "ok", "error": None, "result": None, "trace": None, "rrd": None, "mcap": None,
+            "wall_s": None}
 
 
 def failed_record(spec: RunSpec, error: str) -> dict[str, Any]:

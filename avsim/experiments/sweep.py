@@ -60,6 +60,7 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
+from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
@@ -233,8 +234,10 @@ def _lookup(config: SimConfig, dotted: str) -> Scalar:
 
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None = None, resume: bool = False,
               progress: bool = True, backend: str = "local", address: str | None = None,
-              batch: int = DEFAULT_BATCH) -> Path:
+              batch: int = DEFAULT_BATCH, rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP) -> Path:
     """Run every point of `sweep` into `out_dir` (see the module docstring); returns `out_dir`.
+
+    rrd, mcap: which runs are recorded, under OUT/rrd/ and OUT/mcap/ (`avsim.experiments.recordings`).
 
     workers: runs at once (default: one per core; on a Ray cluster at `address`, the cluster's
     CPUs). backend, address, batch: see `avsim.experiments.batch.run_batch`.
@@ -242,16 +245,17 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     off, the backend cannot run (Ray not installed), or another command holds `out_dir`.
     """
     check_backend(backend, address)
+    check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
         return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
-                                 address=address)
+                                 address=address, batch=batch, rrd=rrd, mcap=mcap)
 
 
 def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: bool, progress: bool, backend: str,
-                      address: str | None) -> Path:
+                      address: str | None, batch: int, rrd: str, mcap: str) -> Path:
     from avsim.experiments.sweep_report import write_sweep_report
 
     results_path = out / RESULTS_FILE
@@ -263,6 +267,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
         spec = sweep.spec_of(run)
         specs.append(spec)
         point_of[spec.spec_hash] = run.point
+    specs = with_recordings(specs, out, rrd=rrd, mcap=mcap)
     if len(point_of) != len(specs):
         raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
 
@@ -273,14 +278,15 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
-    records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out} --resume",
+    records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out}{recording_flags(rrd, mcap)} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
                                  address=address, decorate=lambda record: with_point(record, point_of[record["spec_hash"]]),
                                  batch=batch)
     wall_s = time.perf_counter() - started
     options = [f"--workers {workers}" if workers is not None else "", f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "",
-               f"--address {address}" if address is not None else "", "--resume" if resume else ""]
+               f"--address {address}" if address is not None else "", recording_flags(rrd, mcap).strip(),
+               "--resume" if resume else ""]
     manifest = {
         "command": " ".join([f"avsim sweep {sweep.path} --out {out}", *filter(None, options)]),
         "started_at": started_at.isoformat(timespec="seconds"),

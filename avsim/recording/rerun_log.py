@@ -26,6 +26,11 @@ is that much behind the record's `x_m`, which is read from qpos. The recorder do
 not call `mj_forward` to refresh them: that would change what the next step's
 perception sees, and a recorded run must be the run that would have happened.
 
+The per-step data is kept in memory (JPEG images, a few kB each) and sent on `close()`
+as one column per entity and component (`RecordingStream.send_columns`): a run's file holds
+a few dozen chunks instead of one per logged value, and logging costs a few calls instead of
+a dozen per step.
+
 The file is written to a temporary name beside `path` and renamed on `close()`, so
 an interrupted run leaves no half-written `.rrd`.
 """
@@ -35,8 +40,9 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from collections.abc import Iterable
 from pathlib import Path
-from types import TracebackType
+from typing import Any
 
 import cv2
 import numpy as np
@@ -47,10 +53,10 @@ from avsim.errors import ConfigError, OutputError
 from avsim.loop import ClosedLoop
 from avsim.metrics import StepRecord
 from avsim.outputs import temporary_path
-from avsim.perception.base import Detection
 from avsim.recording import paths
 from avsim.recording.blueprint import default_blueprint
 from avsim.recording.static_scene import log_pinhole, log_world
+from avsim.recording.step_recorder import StepRecorder
 from avsim.sensors.camera import CameraPose
 from avsim.world.scene import CAR_PREFIX
 
@@ -58,8 +64,6 @@ APPLICATION_ID = "avsim"
 DEFAULT_JPEG_QUALITY = 85
 # The trajectory is drawn on the road, not at the body origin (wheel-centre height) [m].
 TRAJECTORY_Z_M = 0.05
-# Sensing times of a frame and its record agree to well under one physics step [s].
-_TIME_TOLERANCE_S = 1e-6
 
 # Series name and colour per metric field, shown in the time-series legends.
 SERIES_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
@@ -89,7 +93,7 @@ class _Frame:
     camera_poses: dict[str, CameraPose]
 
 
-class RunRecorder:
+class RunRecorder(StepRecorder):
     """Logs one `ClosedLoop` run to `path` (an `.rrd` file); attach before the first step.
 
     cameras: "front" always, and "side" when the policy uses it.
@@ -102,12 +106,13 @@ class RunRecorder:
         if not 0 <= jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [0, 100], got {jpeg_quality}")
         self._loop = loop
+        self._share_frames(loop)
         self._path = Path(path)
         self._jpeg_quality = jpeg_quality
         self.cameras: tuple[str, ...] = ("front", *(c for c in loop.policy.cameras if c != "front"))
         self._car_body = loop.model.body(CAR_PREFIX + "car").id
-        self._trajectory_m: list[tuple[float, float, float]] = []
-        self._steps = 0
+        self._frames: list[_Frame] = []  # one per step, captured at its sensing time
+        self._records: list[StepRecord] = []
         self._closed = False
 
         self._rec = rr.RecordingStream(APPLICATION_ID)
@@ -130,31 +135,19 @@ class RunRecorder:
 
     # ---- per step --------------------------------------------------------------------
     def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
-        """Log `record` with the frame captured at its sensing time; `loop.run(on_step=...)` hook."""
-        if self._closed:
-            raise RuntimeError("on_step called on a closed RunRecorder")
-        if loop is not self._loop:
-            raise ValueError("on_step called with a different ClosedLoop than the recorder was built for")
-        frame = self._pending
-        if abs(frame.time_s - record.time_s) > _TIME_TOLERANCE_S:
-            raise RuntimeError(f"frame at t = {frame.time_s:.3f} s but record at t = {record.time_s:.3f} s: "
-                               "on_step must be called once after every loop step")
-        self._set_time(self._steps, record.time_s)
-        self._log_frame(frame)
-        self._log_detections(record.detections)
-        self._log_metrics(record)
-        self._steps += 1
+        """Keep `record` with the frame captured at its sensing time; `loop.run(on_step=...)` hook."""
+        frame = self._frame_for(loop, record)
+        self._frames.append(frame)
+        self._records.append(record)
         # The state now is the next step's sensing state (see the module docstring).
         self._pending = self._capture()
 
     def close(self) -> None:
-        """Log the final state, flush, finish the file and move it to `path`. Idempotent."""
+        """Send the steps and the final state, finish the file and move it to `path`. Idempotent."""
         if self._closed:
             return
         try:
-            self._set_time(self._steps, self._pending.time_s)
-            self._log_frame(self._pending)
-            self._log_detections(())  # no perception ran on the final state
+            self._send_columns([*self._frames, self._pending], self._records)
             try:
                 self._rec.flush()
                 self._rec.disconnect()  # writes the footer and closes the file
@@ -176,14 +169,6 @@ class RunRecorder:
             self._rec.disconnect()
         self._tmp_path.unlink(missing_ok=True)
 
-    def __enter__(self) -> RunRecorder:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     # ---- capture ---------------------------------------------------------------------
     def _capture(self) -> _Frame:
@@ -207,13 +192,6 @@ class RunRecorder:
         return buffer.tobytes()
 
     # ---- logging ---------------------------------------------------------------------
-    def _log(self, entity: str, archetype: rr.AsComponents) -> None:
-        self._rec.log(entity, archetype, strict=True)
-
-    def _set_time(self, frame_index: int, time_s: float) -> None:
-        self._rec.set_time(paths.FRAME_TIMELINE, sequence=frame_index)
-        self._rec.set_time(paths.SIM_TIME_TIMELINE, duration=time_s)
-
     def _log_static(self) -> None:
         loop = self._loop
         scenario, policy = loop.config.scenario, loop.config.policy
@@ -223,40 +201,54 @@ class RunRecorder:
         log_world(self._rec, loop.model, loop.scene)
         for cam in self.cameras:
             log_pinhole(self._rec, cam, loop.rig.intrinsics(cam))
-        # Styles that never change are static, so each step logs only the data.
+        # Styles that never change are static, so the columns hold only the data.
         self._rec.log(paths.TRAJECTORY, rr.LineStrips3D.from_fields(colors=[_TRAJECTORY_COLOUR], radii=[0.1]), static=True, strict=True)
         for field in paths.METRIC_FIELDS:
             name, colour = SERIES_STYLE[field]
             self._rec.log(paths.metric(field), rr.SeriesLines(names=name, colors=[colour]), static=True, strict=True)
 
-    def _log_frame(self, frame: _Frame) -> None:
-        w, x, y, z = frame.car_quat_wxyz
-        self._log(paths.CAR, rr.Transform3D(translation=frame.car_position_m, quaternion=rr.Quaternion(xyzw=[x, y, z, w])))
-        self._trajectory_m.append((float(frame.car_position_m[0]), float(frame.car_position_m[1]), TRAJECTORY_Z_M))
-        self._log(paths.TRAJECTORY, rr.LineStrips3D([self._trajectory_m]))
+    def _send(self, entity: str, rows: list[int], times_s: list[float], columns: Iterable[Any]) -> None:
+        """One column per component of `entity`, a row per step in `rows` (frame indices)."""
+        self._rec.send_columns(entity, indexes=[
+            rr.TimeColumn(paths.FRAME_TIMELINE, sequence=rows),
+            rr.TimeColumn(paths.SIM_TIME_TIMELINE, duration=[times_s[i] for i in rows]),
+        ], columns=columns, strict=True)
+
+    def _send_columns(self, frames: list[_Frame], records: list[StepRecord]) -> None:
+        """Every step's frame (and the final state's, one more than `records`), detections and metrics."""
+        every = list(range(len(frames)))
+        # A record's sensing time, and the final state's time for the last frame.
+        times_s = [r.time_s for r in records] + [frames[-1].time_s]
+        self._send(paths.CAR, every, times_s, rr.Transform3D.columns(
+            translation=np.array([f.car_position_m for f in frames]),
+            quaternion=np.array([f.car_quat_wxyz[[1, 2, 3, 0]] for f in frames])))  # rerun's order is xyzw
+        trail = [(float(f.car_position_m[0]), float(f.car_position_m[1]), TRAJECTORY_Z_M) for f in frames]
+        # One strip per step: the positions so far, so the trail grows as the run plays.
+        self._send(paths.TRAJECTORY, every, times_s,
+                   rr.LineStrips3D.columns(strips=[trail[:i + 1] for i in every]).partition([1] * len(every)))
         for cam in self.cameras:
-            pose = frame.camera_poses[cam]
+            poses = [f.camera_poses[cam] for f in frames]
             # The pose's rotation columns are the camera axes in the world: camera -> world.
-            self._log(paths.camera(cam), rr.Transform3D(translation=pose.position_m, mat3x3=pose.rotation))
-            self._log(paths.camera_image(cam), rr.EncodedImage(contents=frame.images_jpeg[cam], media_type="image/jpeg"))
-
-    def _log_detections(self, detections: tuple[Detection, ...]) -> None:
-        for cam in self.cameras:
-            dets = [d for d in detections if d.camera == cam]
-            # An empty batch is logged too, so the previous step's boxes do not linger.
-            self._log(paths.camera_detections(cam), rr.Boxes2D(
-                array=np.array([d.box_xyxy_px for d in dets], dtype=float).reshape(-1, 4),
-                array_format=rr.Box2DFormat.XYXY,
-                labels=[f"{d.class_name} {d.confidence:.2f}" for d in dets],
-                colors=[_STOP_BOX_COLOUR if d.class_name == STOP_CLASS else _OTHER_BOX_COLOUR for d in dets],
-                show_labels=True,
-            ))
-
-    def _log_metrics(self, record: StepRecord) -> None:
+            self._send(paths.camera(cam), every, times_s, rr.Transform3D.columns(
+                translation=np.array([p.position_m for p in poses]), mat3x3=np.array([p.rotation for p in poses])))
+            self._send(paths.camera_image(cam), every, times_s, rr.EncodedImage.columns(
+                blob=[f.images_jpeg[cam] for f in frames], media_type=["image/jpeg"] * len(frames)))
+            # Every step has a batch, empty ones too, so the previous step's boxes do not linger;
+            # the final state has an empty one (no perception ran on it).
+            per_step = [[d for d in r.detections if d.camera == cam] for r in records] + [[]]
+            boxes = [d for dets in per_step for d in dets]
+            xyxy = np.array([d.box_xyxy_px for d in boxes], dtype=float).reshape(-1, 4)
+            self._send(paths.camera_detections(cam), every, times_s, rr.Boxes2D.columns(
+                centers=(xyxy[:, :2] + xyxy[:, 2:]) / 2, half_sizes=(xyxy[:, 2:] - xyxy[:, :2]) / 2,
+                labels=[f"{d.class_name} {d.confidence:.2f}" for d in boxes],
+                colors=[_STOP_BOX_COLOUR if d.class_name == STOP_CLASS else _OTHER_BOX_COLOUR for d in boxes],
+                show_labels=[True] * len(boxes),
+            ).partition([len(dets) for dets in per_step]))
         for field in paths.METRIC_FIELDS:
-            value = getattr(record, field)
-            if value is not None and math.isfinite(value):
-                self._log(paths.metric(field), rr.Scalars(float(value)))
+            values = [getattr(r, field) for r in records]
+            rows = [i for i, v in enumerate(values) if v is not None and math.isfinite(v)]
+            if rows:
+                self._send(paths.metric(field), rows, times_s, rr.Scalars.columns(scalars=[float(values[i]) for i in rows]))
 
 
 def _one_line(exc: BaseException) -> str:

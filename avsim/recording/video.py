@@ -30,7 +30,6 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import TYPE_CHECKING
 
 import cv2
@@ -41,6 +40,7 @@ from avsim.errors import AvsimError, ConfigError
 from avsim.metrics import StepRecord
 from avsim.outputs import temporary_path
 from avsim.perception.base import Detection
+from avsim.recording.step_recorder import StepRecorder
 
 if TYPE_CHECKING:
     from avsim.loop import ClosedLoop
@@ -56,8 +56,6 @@ _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _FONT_SCALE = 0.5
 _PANEL_SIZE_PX = (190, 70)  # width, height of the speed/brake panel
 _PANEL_OPACITY = 0.6
-# Sensing times of a frame and its record agree to well under one physics step [s].
-_TIME_TOLERANCE_S = 1e-6
 
 
 @dataclass(frozen=True)
@@ -105,13 +103,14 @@ def _draw_panel(bgr: np.ndarray, time_s: float, speed_kmh: float, brake: float) 
         cv2.rectangle(bgr, (bar_x0, bar_y - 10), (filled_x, bar_y), _BRAKE_BAR_BGR, cv2.FILLED)
 
 
-class VideoRecorder:
+class VideoRecorder(StepRecorder):
     """Writes the front camera of one `ClosedLoop` run to `path` (.mp4); attach before the first step."""
 
     def __init__(self, loop: ClosedLoop, path: str | os.PathLike) -> None:
         if loop.records:
             raise ValueError("attach the VideoRecorder before the loop's first step")
         self._loop = loop
+        self._share_frames(loop)
         self._path = Path(path)
         if self._path.suffix.lower() != ".mp4":
             raise ConfigError(f"--mp4 expects a path ending in .mp4, got '{self._path}'")
@@ -140,14 +139,7 @@ class VideoRecorder:
 
     def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
         """Write the frame captured at `record`'s sensing time, annotated; `loop.run(on_step=...)` hook."""
-        if self._closed:
-            raise RuntimeError("on_step called on a closed VideoRecorder")
-        if loop is not self._loop:
-            raise ValueError("on_step called with a different ClosedLoop than the recorder was built for")
-        frame = self._pending
-        if abs(frame.time_s - record.time_s) > _TIME_TOLERANCE_S:
-            raise RuntimeError(f"frame at t = {frame.time_s:.3f} s but record at t = {record.time_s:.3f} s: "
-                               "on_step must be called once after every loop step")
+        frame = self._frame_for(loop, record)
         detections = tuple(d for d in record.detections if d.camera == CAMERA)
         self._write(frame, detections, record.brake)
         self._last_brake = record.brake
@@ -175,14 +167,6 @@ class VideoRecorder:
         self._writer.release()
         self._tmp_path.unlink(missing_ok=True)
 
-    def __enter__(self) -> VideoRecorder:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
     def _capture(self) -> _Frame:
         loop = self._loop

@@ -78,6 +78,14 @@ class CameraPose:
         return float(-(self.rotation[:, 2] @ (np.asarray(point_world_m) - self.position_m)))
 
 
+def _render_key(model: mujoco.MjModel, data: mujoco.MjData) -> bytes:
+    """What a frame is drawn from: the time, every geom's, camera's and light's pose, and every
+    geom's group and colour (which hide or tint it)."""
+    return b"".join(np.ascontiguousarray(a).tobytes() for a in (
+        np.float64(data.time), data.geom_xpos, data.geom_xmat, data.cam_xpos, data.cam_xmat, data.light_xpos, data.light_xdir,
+        model.geom_group, model.geom_rgba))
+
+
 class CameraRig:
     """Renders the car's cameras. One RGB and one segmentation renderer serve both
     cameras (a renderer is not tied to a camera), created on first use so that a
@@ -93,6 +101,8 @@ class CameraRig:
         self._option = mujoco.MjvOption()
         self._option.geomgroup[EGO_GROUP] = 0
         self._option.geomgroup[3] = 0
+        self.reuse_last_frame = False  # see `render_rgb`
+        self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
 
     def intrinsics(self, camera: str) -> Intrinsics:
         return intrinsics_for(camera, self._config)
@@ -107,14 +117,30 @@ class CameraRig:
         region_px: (x0, y0, x1, y1) [px], end-exclusive: read back only that part (the same pixels
         as in the whole image; reading back is where a software rasteriser spends its time) and
         leave the rest zero. For a perception that looks at a region of interest only.
+
+        With `reuse_last_frame` on, the last frame of each camera is kept with what it was drawn
+        from (the poses, and the geoms' groups and colours), and asking again for the same camera
+        and state returns a copy of it instead of drawing it again: in a recorded run a recorder
+        and the perception both ask for each sensing state's frame. It is off by default, because
+        a caller may change the model's appearance in other ways between two renders of one state
+        (a texture, a light); the recorders turn it on for their run, in which nothing does. Then
+        every frame is drawn whole, a region included, since the recorder wants the whole of it.
         """
+        key = _render_key(self._model, data) if self.reuse_last_frame else None
+        last = self._last_rgb.get(camera)
+        if key is not None and last is not None and last[0] == key:
+            return last[1].copy()
         if self._rgb is None:
             self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False, fog=self._fog)
-        if region_px is None:
-            return self._rgb.render(data, self._ids[camera], self._option).copy()
-        x0, y0, x1, y1 = region_px
-        frame = np.zeros((self._config.height_px, self._config.width_px, 3), np.uint8)
-        frame[y0:y1, x0:x1] = self._rgb.render(data, self._ids[camera], self._option, region_px)
+        if region_px is not None and key is None:
+            x0, y0, x1, y1 = region_px
+            frame = np.zeros((self._config.height_px, self._config.width_px, 3), np.uint8)
+            frame[y0:y1, x0:x1] = self._rgb.render(data, self._ids[camera], self._option, region_px)
+            return frame
+        frame = self._rgb.render(data, self._ids[camera], self._option).copy()
+        if key is not None:
+            self._last_rgb[camera] = (key, frame)
+            return frame.copy()
         return frame
 
     def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:
@@ -188,3 +214,4 @@ class CameraRig:
             if renderer is not None:
                 renderer.close()
         self._rgb = self._seg = None
+        self._last_rgb.clear()

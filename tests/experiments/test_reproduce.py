@@ -5,7 +5,8 @@ import json
 import pytest
 
 from avsim import cli
-from avsim.experiments.reproduce import load_study, reproduce, slug
+from avsim.experiments.recordings import slug
+from avsim.experiments.reproduce import load_study, reproduce
 from avsim.experiments.results_file import read_records
 
 # The study's Table III cell names, so the report sets them beside the study's figures.
@@ -45,7 +46,7 @@ def results(tmp_path_factory):
     (root / "table3_stop_positions.toml").write_text(TINY_TABLE3)
     (root / "fig3_detection.toml").write_text(TINY_FIG3)
     paths = [root / "table3_stop_positions.toml", root / "fig3_detection.toml"]
-    return reproduce(root / "results", workers=1, experiment_paths=paths, progress=False)
+    return reproduce(root / "results", workers=1, experiment_paths=paths, progress=False, rrd="all")
 
 
 def test_every_run_has_a_record_in_spec_order_and_its_own_recording(results):

@@ -125,3 +125,38 @@ def test_missing_gl_backend_gives_a_one_line_render_error(monkeypatch):
     with pytest.raises(RenderError) as err:
         loop.rig.render_rgb(loop.data, "front")
     assert "\n" not in str(err.value) and "MUJOCO_GL" in str(err.value) and "osmesa" in str(err.value)
+
+
+def test_asking_again_for_the_same_state_gives_the_same_frame_and_a_new_state_a_new_one():
+    """render_rgb keeps each camera's last frame; it must never hand back a stale one."""
+    loop = ClosedLoop(make_config(scenario={"start_dist_m": 60.0}))
+    fresh = ClosedLoop(make_config(scenario={"start_dist_m": 60.0}))
+    loop.rig.reuse_last_frame = fresh.rig.reuse_last_frame = True
+    try:
+        first = loop.rig.render_rgb(loop.data, "front")
+        again = loop.rig.render_rgb(loop.data, "front")
+        assert np.array_equal(first, again) and first is not again
+        again[:] = 0  # a caller's copy: changing it changes nothing kept
+        assert np.array_equal(loop.rig.render_rgb(loop.data, "front"), first)
+        side = loop.rig.render_rgb(loop.data, "side")
+        assert not np.array_equal(side, first)
+        for _ in range(3):
+            loop.step()
+            fresh.step()
+            moved = loop.rig.render_rgb(loop.data, "front")
+            # Drawn by a rig that draws this state for the first time: the same pixels, bit for bit.
+            assert np.array_equal(moved, fresh.rig.render_rgb(fresh.data, "front"))
+        assert not np.array_equal(moved, first)
+        # A change of the model's appearance at the same state (the view bank hides the sign's face
+        # this way) is a new frame, not the kept one.
+        sign = loop.scene.stop_sign
+        face = loop.model.geom(sign.face_geom).id
+        group = int(loop.model.geom_group[face])
+        loop.model.geom_group[face] = 5
+        hidden = loop.rig.render_rgb(loop.data, "front")
+        loop.model.geom_group[face] = group
+        assert not np.array_equal(hidden, moved)
+        assert np.array_equal(loop.rig.render_rgb(loop.data, "front"), moved)
+    finally:
+        loop.close()
+        fresh.close()

@@ -1,0 +1,66 @@
+"""What every recorder of a run shares (`RunRecorder`, `VideoRecorder`, `BagRecorder`).
+
+A recorder captures the state the loop is in after each step, which is the next step's sensing
+state, and writes it with that next step's record (each recorder's docstring says why). This base
+class checks that pairing, and gives the recorders their `with` behaviour: `close()` when the block
+ends normally, `abort()` (delete the partial file) when it raises.
+"""
+
+from __future__ import annotations
+
+from types import TracebackType
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    from avsim.loop import ClosedLoop
+    from avsim.metrics import StepRecord
+
+# Sensing times of a frame and its record agree to well under one physics step [s].
+TIME_TOLERANCE_S = 1e-6
+
+
+class _Timed(Protocol):
+    time_s: float
+
+
+class StepRecorder:
+    """Base of the recorders; a subclass sets `_loop`, `_closed` and `_pending` (a frame with
+    `time_s`) and defines `close()` and `abort()`."""
+
+    _loop: ClosedLoop
+    _closed: bool
+    _pending: Any
+
+    @staticmethod
+    def _share_frames(loop: ClosedLoop) -> None:
+        """Let the recorder's render of each sensing state and the perception's share one draw
+        (`CameraRig.render_rgb`): in a closed-loop run nothing changes the model's appearance."""
+        loop.rig.reuse_last_frame = True
+
+    def _frame_for(self, loop: ClosedLoop, record: StepRecord) -> _Timed:
+        """The pending frame, checked to be of `record`'s sensing time in the recorder's own loop."""
+        name = type(self).__name__
+        if self._closed:
+            raise RuntimeError(f"on_step called on a closed {name}")
+        if loop is not self._loop:
+            raise ValueError(f"on_step called with a different ClosedLoop than the {name} was built for")
+        frame = self._pending
+        if abs(frame.time_s - record.time_s) > TIME_TOLERANCE_S:
+            raise RuntimeError(f"frame at t = {frame.time_s:.3f} s but record at t = {record.time_s:.3f} s: "
+                               "on_step must be called once after every loop step")
+        return frame
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def abort(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Any:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
