@@ -183,9 +183,10 @@ def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_aga
             raise RuntimeError("EGL context lost")
         return real(config, **kwargs)
 
-    monkeypatch.setattr(run_task, "run_recorded", renderer_lost_at_60)  # --workers 1 runs in this process
+    # --workers 1 runs in this process, and --batch 1 one run at a time, through run_recorded
+    monkeypatch.setattr(run_task, "run_recorded", renderer_lost_at_60)
     out = tmp_path / "failing"
-    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]) == 0
+    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--batch", "1", "--no-progress"]) == 0
     records = read_records(out / "results.jsonl")
     assert [r["status"] for r in records] == ["ok", "ok", "failed", "failed"]
     for record in records[2:]:
