@@ -68,8 +68,14 @@ def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequen
     def on_record(record: Record) -> None:
         if decorate is not None:
             record = decorate(record)
-        writer.append(record)  # first: a record that could not be written is not counted as kept
+        # Counted first, so a Ctrl-C that lands after the line is written never reports it missing;
+        # a line that could not be written (a full disk) is not counted.
         ran[record["spec_hash"]] = record
+        try:
+            writer.append(record)
+        except OutputError:
+            del ran[record["spec_hash"]]
+            raise
 
     try:
         run_batch(todo, workers=workers, root=results_path.parent, on_record=on_record, progress=progress,
