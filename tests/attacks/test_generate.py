@@ -116,7 +116,7 @@ def test_every_shipped_record_is_written_by_todays_generator():
 
 @pytest.mark.parametrize("argv, mention", [
     (["--from", "textures/yang.json", "--method", "yang"], "drop --method"),
-    (["--method", "driveby", "--detector", "yolo"], "--detector"),
+    (["--method", "driveby", "--detector", "yolo9000"], "--detector"),
     (["--method", "driveby", "--ssim-floor", "1.5"], "--ssim-floor"),
     (["--steps", "3"], "--method"),
 ])
