@@ -5,7 +5,8 @@ convolutions on AVX-512 BF16, summing in float32, rounding each layer's output t
 significant bits). The heads' raw maps are decoded in float32, so only the network's
 arithmetic differs from the float32 model, which stays as it is for the OpenCV reference
 check and for attacks (they differentiate `YoloModel`). How far the scores move is measured,
-not assumed (docs/yolo.md, `python -m avsim.perception.yolo.agreement`).
+not assumed (docs/yolo.md;
+`python -m avsim.perception.coco.realism --network yolo --precisions fp32,bf16`).
 """
 
 from __future__ import annotations
