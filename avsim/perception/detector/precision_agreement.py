@@ -39,7 +39,8 @@ def format_agreement(reports: dict[str, EvalReport]) -> str:
     """A markdown table: per bin, each precision's recall and interval, and whether bf16 is inside fp32's."""
     fp32, bf16 = reports["fp32"], reports["bf16"]
     lines = [f"stop-sign recall at confidence >= {fp32.conf_threshold} (front camera), fp32 against bf16:", "",
-             "| bin | frames | fp32 recall (95 % CI) | bf16 recall (95 % CI) | bf16 inside fp32's CI |", "|---|---|---|---|---|"]
+             "| bin | frames | fp32 recall (95 % CI) | bf16 recall (95 % CI) | bf16 inside fp32's CI | mean best score fp32 / bf16 |",
+             "|---|---|---|---|---|---|"]
     inside = total = 0
     for name, count in fp32.count_by_bin.items():
         if count == 0:
@@ -49,7 +50,8 @@ def format_agreement(reports: dict[str, EvalReport]) -> str:
         inside, total = inside + ok, total + 1
         blo, bhi = bf16.recall_ci95_by_bin[name]
         lines.append(f"| {name} | {count} | {fp32.recall_by_bin[name]:.3f} ({lo:.3f}-{hi:.3f}) | "
-                     f"{bf16.recall_by_bin[name]:.3f} ({blo:.3f}-{bhi:.3f}) | {'yes' if ok else 'NO'} |")
+                     f"{bf16.recall_by_bin[name]:.3f} ({blo:.3f}-{bhi:.3f}) | {'yes' if ok else 'NO'} | "
+                     f"{fp32.mean_conf_by_bin[name]:.5f} / {bf16.mean_conf_by_bin[name]:.5f} |")
     lines += ["", f"bf16 recall inside fp32's interval in {inside} of {total} bins", "",
               "| | fp32 | bf16 |", "|---|---|---|"]
     for cls in fp32.ap50:
