@@ -81,6 +81,9 @@ _STOP_BOX_COLOUR = (255, 40, 40)
 _OTHER_BOX_COLOUR = (255, 200, 0)
 _TRAJECTORY_COLOUR = (40, 120, 220)
 
+# How long closing a recording waits for rerun to write it out [s] (see `RunRecorder.close`).
+FLUSH_TIMEOUT_S = 30.0
+
 
 @dataclass(frozen=True)
 class _Frame:
@@ -149,12 +152,18 @@ class RunRecorder(StepRecorder):
         try:
             self._send_columns([*self._frames, self._pending], self._records)
             try:
-                self._rec.flush()
+                # A writer thread that died of a full disk never finishes a flush: wait a bounded time
+                # (a healthy flush of a whole run takes well under a second here), then report it.
+                self._rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
                 self._rec.disconnect()  # writes the footer and closes the file
                 os.replace(self._tmp_path, self._path)
             except Exception as exc:
                 # rerun's file writer runs in a thread and reports a full disk (or a file-size
                 # limit) only as "shut down prematurely" at the flush: said here in the user's terms.
+                # Its writer is gone, so disconnecting would wait for it for ever: `abort` must not,
+                # and neither may rerun's own flush at interpreter exit.
+                self._writer_lost = True
+                rr.unregister_shutdown()
                 raise OutputError(f"cannot write {self._path}: the recording could not be finished "
                                   f"({_one_line(exc)}); is the disk full?") from None
         except BaseException:
@@ -165,7 +174,8 @@ class RunRecorder(StepRecorder):
     def abort(self) -> None:
         """Stop recording and delete the partial file; `path` is left untouched."""
         self._closed = True
-        if self._rec.is_enabled():  # a disabled stream has nothing to close (and warns if asked)
+        # A disabled stream has nothing to close (and warns if asked); a lost writer never answers.
+        if self._rec.is_enabled() and not getattr(self, "_writer_lost", False):
             self._rec.disconnect()
         self._tmp_path.unlink(missing_ok=True)
 
