@@ -64,7 +64,7 @@ def test_a_write_past_the_limit_is_cut_back_to_the_last_whole_record(tmp_path, l
 def test_a_sweep_that_fills_the_disk_stops_in_one_line_and_resumes_to_the_same_records(tmp_path):
     reference = tmp_path / "reference"
     subprocess.run([sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(reference), "--workers", "1",
-                    "--no-progress"], cwd=REPO, check=True, capture_output=True, timeout=300)
+                    "--rrd", "none", "--no-progress"], cwd=REPO, check=True, capture_output=True, timeout=300)
     expected = read_records(reference / "results.jsonl")
     # Room for the first two records of results.jsonl and no more (the other files are smaller,
     # except the figure and summary, which are written only once every run is in).
@@ -72,7 +72,9 @@ def test_a_sweep_that_fills_the_disk_stops_in_one_line_and_resumes_to_the_same_r
     limit = sizes[0] + sizes[1] + min(sizes[2], sizes[3]) // 2
 
     out = tmp_path / "full"
-    argv = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]
+    # --rrd none: this test is about results.jsonl; a recording that meets the limit is test_rerun_disk_full's
+    argv = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--rrd", "none",
+            "--no-progress"]
     full = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, timeout=300, preexec_fn=_limit_file_size(limit))
     lines = full.stderr.splitlines()
     assert full.returncode == 2 and len(lines) == 1, full.stderr
