@@ -117,6 +117,7 @@ class RunRecorder(StepRecorder):
         self._frames: list[_Frame] = []  # one per step, captured at its sensing time
         self._records: list[StepRecord] = []
         self._closed = False
+        self._writer_lost = False  # rerun's file writer died (a full disk): see `_finish`
 
         self._rec = rr.RecordingStream(APPLICATION_ID)
         self._path.parent.mkdir(parents=True, exist_ok=True)
@@ -145,37 +146,29 @@ class RunRecorder(StepRecorder):
         # The state now is the next step's sensing state (see the module docstring).
         self._pending = self._capture()
 
-    def close(self) -> None:
-        """Send the steps and the final state, finish the file and move it to `path`. Idempotent."""
-        if self._closed:
-            return
+    def _finish(self) -> None:
+        """Send the steps and the final state, finish the file and move it to `path`; called by `StepRecorder.close`."""
+        self._send_columns([*self._frames, self._pending], self._records)
         try:
-            self._send_columns([*self._frames, self._pending], self._records)
-            try:
-                # A writer thread that died of a full disk never finishes a flush: wait a bounded time
-                # (a healthy flush of a whole run takes well under a second here), then report it.
-                self._rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-                self._rec.disconnect()  # writes the footer and closes the file
-                os.replace(self._tmp_path, self._path)
-            except Exception as exc:
-                # rerun's file writer runs in a thread and reports a full disk (or a file-size
-                # limit) only as "shut down prematurely" at the flush: said here in the user's terms.
-                # Its writer is gone, so disconnecting would wait for it for ever: `abort` must not,
-                # and neither may rerun's own flush at interpreter exit.
-                self._writer_lost = True
-                rr.unregister_shutdown()
-                raise OutputError(f"cannot write {self._path}: the recording could not be finished "
-                                  f"({_one_line(exc)}); is the disk full?") from None
-        except BaseException:
-            self.abort()
-            raise
-        self._closed = True
+            # A writer thread that died of a full disk never finishes a flush: wait a bounded time
+            # (a healthy flush of a whole run takes well under a second here), then report it.
+            self._rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+            self._rec.disconnect()  # writes the footer and closes the file
+            os.replace(self._tmp_path, self._path)
+        except Exception as exc:
+            # rerun's file writer runs in a thread and reports a full disk (or a file-size
+            # limit) only as "shut down prematurely" at the flush: said here in the user's terms.
+            # Its writer is gone, so disconnecting would wait for it for ever: `abort` must not,
+            # and neither may rerun's own flush at interpreter exit.
+            self._writer_lost = True
+            rr.unregister_shutdown()
+            raise OutputError(f"cannot write {self._path}: the recording could not be finished "
+                              f"({_one_line(exc)}); is the disk full?") from None
 
-    def abort(self) -> None:
+    def _discard(self) -> None:
         """Stop recording and delete the partial file; `path` is left untouched."""
-        self._closed = True
         # A disabled stream has nothing to close (and warns if asked); a lost writer never answers.
-        if self._rec.is_enabled() and not getattr(self, "_writer_lost", False):
+        if self._rec.is_enabled() and not self._writer_lost:
             self._rec.disconnect()
         self._tmp_path.unlink(missing_ok=True)
 

@@ -165,26 +165,18 @@ class BagRecorder(StepRecorder):
         """The run's result, written to /avsim/run with the config when the bag is closed."""
         self._result = result
 
-    def close(self) -> None:
-        """Write /avsim/run, finish the bag and move its .mcap to `path`. Idempotent."""
-        if self._closed:
-            return
-        try:
-            payload = {"config": self._loop.config.to_dict(),
-                       "result": self._result.to_json_dict() if self._result is not None else None}
-            last_ns = time_ns(self._pending.time_s)
-            self._write(RUN_TOPIC, last_ns, self._types["std_msgs/msg/String"](data=json.dumps(payload, sort_keys=True)))
-            self._writer.close()
-            os.replace(self._tmp_dir / f"{self._tmp_dir.name}.mcap", self._path)
-            shutil.rmtree(self._tmp_dir)
-        except BaseException:
-            self.abort()
-            raise
-        self._closed = True
+    def _finish(self) -> None:
+        """Write /avsim/run, finish the bag and move its .mcap to `path`; called by `StepRecorder.close`."""
+        payload = {"config": self._loop.config.to_dict(),
+                   "result": self._result.to_json_dict() if self._result is not None else None}
+        last_ns = time_ns(self._pending.time_s)
+        self._write(RUN_TOPIC, last_ns, self._types["std_msgs/msg/String"](data=json.dumps(payload, sort_keys=True)))
+        self._writer.close()
+        os.replace(self._tmp_dir / f"{self._tmp_dir.name}.mcap", self._path)
+        shutil.rmtree(self._tmp_dir)
 
-    def abort(self) -> None:
+    def _discard(self) -> None:
         """Stop recording and delete the partial bag; `path` is left untouched."""
-        self._closed = True
         shutil.rmtree(self._tmp_dir, ignore_errors=True)
 
 

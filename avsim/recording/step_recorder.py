@@ -51,9 +51,26 @@ class StepRecorder:
         return frame
 
     def close(self) -> None:
-        raise NotImplementedError
+        """Finish the recording and move it to its path (the subclass's `_finish`). Idempotent. On any
+        error the partial file is discarded (`abort`) and the error raised: nothing half-written stays."""
+        if self._closed:
+            return
+        try:
+            self._finish()
+        except BaseException:
+            self.abort()
+            raise
+        self._closed = True
 
     def abort(self) -> None:
+        """Stop recording and delete the partial file (the subclass's `_discard`); the path is left untouched."""
+        self._closed = True
+        self._discard()
+
+    def _finish(self) -> None:
+        raise NotImplementedError
+
+    def _discard(self) -> None:
         raise NotImplementedError
 
     def __enter__(self) -> Any:

@@ -146,24 +146,16 @@ class VideoRecorder(StepRecorder):
         # The state now is the next step's sensing state (see the module docstring).
         self._pending = self._capture()
 
-    def close(self) -> None:
-        """Write the final state's frame, finish the file and move it to `path`. Idempotent."""
-        if self._closed:
-            return
-        try:
-            self._write(self._pending, (), self._last_brake)  # no perception ran on the final state
-            self._writer.release()
-            if not self._tmp_path.is_file() or self._tmp_path.stat().st_size == 0:
-                raise AvsimError(f"cannot write {self._path}: the '{FOURCC}' encoder produced no data")
-            os.replace(self._tmp_path, self._path)
-        except BaseException:
-            self.abort()
-            raise
-        self._closed = True
+    def _finish(self) -> None:
+        """Write the final state's frame, finish the file and move it to `path`; called by `StepRecorder.close`."""
+        self._write(self._pending, (), self._last_brake)  # no perception ran on the final state
+        self._writer.release()
+        if not self._tmp_path.is_file() or self._tmp_path.stat().st_size == 0:
+            raise AvsimError(f"cannot write {self._path}: the '{FOURCC}' encoder produced no data")
+        os.replace(self._tmp_path, self._path)
 
-    def abort(self) -> None:
+    def _discard(self) -> None:
         """Stop recording and delete the partial file; `path` is left untouched."""
-        self._closed = True
         self._writer.release()
         self._tmp_path.unlink(missing_ok=True)
 
