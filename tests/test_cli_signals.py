@@ -110,7 +110,8 @@ def test_ctrl_c_during_a_sweep_says_how_to_resume_and_resuming_gives_the_same_re
 
     out, log = tmp_path / "interrupted", tmp_path / "stderr.log"
     results = out / "results.jsonl"
-    argv = ["sweep", str(SMOKE), "--out", str(out), "--workers", "2", "--no-progress"]
+    # --batch 1: each worker runs one at a time, so Ctrl-C can land between records.
+    argv = ["sweep", str(SMOKE), "--out", str(out), "--workers", "2", "--batch", "1", "--no-progress"]
     proc = start_avsim(argv, log)
     wait_until(lambda: results.exists() and results.read_text().count("\n") >= 1, proc, "its first record", log)
     workers = _children(proc.pid)

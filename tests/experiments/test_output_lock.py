@@ -75,7 +75,10 @@ def test_a_folder_made_for_a_start_that_failed_is_removed(tmp_path):
 @pytest.mark.slow  # about 20 s: one smoke sweep, with a second started into its folder
 def test_a_second_sweep_into_the_same_folder_is_refused_and_the_first_finishes_intact(tmp_path):
     out = tmp_path / "out"
-    argv = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]
+    # --batch 1: runs one after another, so the first sweep is still running when the second starts
+    # (in lock-step all four runs would end together).
+    argv = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--batch", "1",
+            "--no-progress"]
     first = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
     while not (out / "results.jsonl").exists():  # the first holds the folder and has begun its runs

@@ -27,7 +27,10 @@ TIMEOUT_S = 120.0  # per subprocess; the whole sweep takes a fraction of it
 
 
 def _start(out: Path, log: Path, resume: bool) -> subprocess.Popen:
-    command = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]
+    # --batch 1: one run after another, so a kill can fall between two records (a lock-step batch of
+    # four would write all four at its end).
+    command = [sys.executable, "-m", "avsim", "sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--batch", "1",
+               "--no-progress"]
     with log.open("ab") as stderr:
         return subprocess.Popen(command + (["--resume"] if resume else []), cwd=REPO, stdout=subprocess.DEVNULL,
                                 stderr=stderr)
