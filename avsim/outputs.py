@@ -271,6 +271,14 @@ def _write_bytes_in_place(path: Path, data: bytes) -> None:
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Write `data` to a temporary file beside `path`, fsync it, and rename it over `path`;
     an OSError becomes an OutputError naming `path`."""
+    write_reserved(reserve_temporary(path), path, data)
+
+
+def reserve_temporary(path: str | os.PathLike) -> Path:
+    """Create `path`'s folder and an empty temporary file beside it (`temporary_path`), for a writer
+    that fills it later (`write_reserved`): an unwritable place fails now, before the work, and a
+    writer killed meanwhile leaves a temporary that the next write of `path` removes.
+    An OSError becomes an OutputError naming `path`."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -278,8 +286,20 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
         raise OutputError(f"cannot write {path}: cannot create its folder ({exc.strerror or exc})") from None
     tmp = temporary_path(path)
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        with os.fdopen(fd, "wb") as handle:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    except OSError as exc:
+        _OWN_TEMPORARIES.discard(tmp)
+        raise OutputError(f"cannot write {path} ({exc.strerror or exc})") from None
+    return tmp
+
+
+def write_reserved(tmp: Path, path: str | os.PathLike, data: bytes) -> None:
+    """Fill the temporary `tmp` from `reserve_temporary(path)` with `data`, fsync it and rename it
+    over `path`. On any failure `tmp` is removed; an OSError (a full disk) becomes an OutputError
+    naming `path`."""
+    path = Path(path)
+    try:
+        with open(tmp, "wb") as handle:
             handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())

@@ -31,8 +31,13 @@ as one column per entity and component (`RecordingStream.send_columns`): a run's
 a few dozen chunks instead of one per logged value, and logging costs a few calls instead of
 a dozen per step.
 
-The file is written to a temporary name beside `path` and renamed on `close()`, so
-an interrupted run leaves no half-written `.rrd`.
+rerun logs into a memory sink (`RecordingStream.memory_recording`), and `close()` writes its
+bytes with avsim's own checked write: into a temporary file beside `path` (created when the
+recorder starts, so an unwritable place fails before the run), fsynced, then renamed,
+so an interrupted run leaves no half-written `.rrd`. rerun's own file sink is not used: its
+writer thread reports a full disk only as "shut down prematurely", and a process whose writer
+died that way waited for it for ever at exit. Written from Python, a full disk is an OSError,
+reported in one line naming the file.
 """
 
 from __future__ import annotations
@@ -49,10 +54,10 @@ import numpy as np
 import rerun as rr
 
 from avsim.control.policies import STOP_CLASS
-from avsim.errors import ConfigError, OutputError
+from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
 from avsim.metrics import StepRecord
-from avsim.outputs import temporary_path
+from avsim.outputs import reserve_temporary, write_reserved
 from avsim.recording import paths
 from avsim.recording.blueprint import default_blueprint
 from avsim.recording.static_scene import log_pinhole, log_world
@@ -80,10 +85,6 @@ SERIES_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
 _STOP_BOX_COLOUR = (255, 40, 40)
 _OTHER_BOX_COLOUR = (255, 200, 0)
 _TRAJECTORY_COLOUR = (40, 120, 220)
-
-# How long closing a recording waits for rerun to write it out [s] (see `RunRecorder.close`).
-FLUSH_TIMEOUT_S = 30.0
-
 
 @dataclass(frozen=True)
 class _Frame:
@@ -117,20 +118,18 @@ class RunRecorder(StepRecorder):
         self._frames: list[_Frame] = []  # one per step, captured at its sensing time
         self._records: list[StepRecord] = []
         self._closed = False
-        self._writer_lost = False  # rerun's file writer died (a full disk): see `_finish`
 
         self._rec = rr.RecordingStream(APPLICATION_ID)
-        self._path.parent.mkdir(parents=True, exist_ok=True)
-        # A unique hidden name beside `path` (same file system, so the rename is atomic), which
-        # a later write of `path` removes if this process is killed; rerun creates the file,
-        # with the user's usual permissions.
-        self._tmp_path = temporary_path(self._path)
+        # The file's temporary name is taken now, so an unwritable place fails before the run;
+        # it is filled and renamed to `path` at close.
+        self._tmp_path = reserve_temporary(self._path)
         try:
             if not self._rec.is_enabled():
                 raise ConfigError("rerun logging is disabled (RERUN=off in the environment); unset RERUN to write --rrd")
             # The run's clocks are sim_time and frame; wall-clock log_time would be a misleading third.
             self._rec.set_log_time_enabled(False)
-            self._rec.save(self._tmp_path, default_blueprint=default_blueprint(self.cameras))
+            self._memory = self._rec.memory_recording()  # see the module docstring
+            rr.send_blueprint(default_blueprint(self.cameras), make_active=False, make_default=True, recording=self._rec)
             self._log_static()
             self._pending = self._capture()  # the sensing-time state of step 0
         except BaseException:
@@ -147,31 +146,18 @@ class RunRecorder(StepRecorder):
         self._pending = self._capture()
 
     def _finish(self) -> None:
-        """Send the steps and the final state, finish the file and move it to `path`; called by `StepRecorder.close`."""
+        """Send the steps and the final state, and write the file to `path` through its temporary
+        name (a full disk is an OutputError naming `path`); called by `StepRecorder.close`."""
         self._send_columns([*self._frames, self._pending], self._records)
-        try:
-            # A writer thread that died of a full disk never finishes a flush: wait a bounded time
-            # (a healthy flush of a whole run takes well under a second here), then report it.
-            self._rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-            self._rec.disconnect()  # writes the footer and closes the file
-            os.replace(self._tmp_path, self._path)
-        except Exception as exc:
-            # rerun's file writer runs in a thread and reports a full disk (or a file-size
-            # limit) only as "shut down prematurely" at the flush: said here in the user's terms.
-            # Its writer is gone, so disconnecting would wait for it for ever: `abort` must not,
-            # and neither may rerun's own flush at interpreter exit.
-            self._writer_lost = True
-            rr.unregister_shutdown()
-            raise OutputError(f"cannot write {self._path}: the recording could not be finished "
-                              f"({_one_line(exc)}); is the disk full?") from None
+        data = self._memory.drain_as_bytes()  # flushes rerun's batcher first
+        self._rec.disconnect()
+        write_reserved(self._tmp_path, self._path, data)
 
     def _discard(self) -> None:
-        """Stop recording and delete the partial file; `path` is left untouched."""
-        # A disabled stream has nothing to close (and warns if asked); a lost writer never answers.
-        if self._rec.is_enabled() and not self._writer_lost:
+        """Stop recording and delete the temporary file; `path` is left untouched."""
+        if self._rec.is_enabled():  # a disabled stream has nothing to close (and warns if asked)
             self._rec.disconnect()
         self._tmp_path.unlink(missing_ok=True)
-
 
     # ---- capture ---------------------------------------------------------------------
     def _capture(self) -> _Frame:
@@ -253,7 +239,3 @@ class RunRecorder(StepRecorder):
             if rows:
                 self._send(paths.metric(field), rows, times_s, rr.Scalars.columns(scalars=[float(values[i]) for i in rows]))
 
-
-def _one_line(exc: BaseException) -> str:
-    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
-    return lines[0] if lines else type(exc).__name__
