@@ -34,7 +34,7 @@ quick: $(VENV)/.installed
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q
-	$(PY) -m pytest -q -m 'slow and not regen'
+	$(PY) -m pytest -q -m 'slow and not regen' --durations=20
 
 # Every shipped texture made again from its record (about an hour here); `make test` covers one per code path.
 test-regen: $(VENV)/.installed

@@ -28,10 +28,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 from avsim.outputs import remove_own_temporaries
 
-# Runs a local worker steps in lock-step by default (`--batch`): batches of 8 share the bf16 network
+# Runs a worker or Ray task steps in lock-step by default (`--batch`): batches of 8 share the bf16 network
 # call best per core here (`avsim bench`), and a killed batch loses at most 8 runs in flight per worker.
 DEFAULT_BATCH = 8
-BATCH_HELP = (f"runs each local worker steps together, one network call per control tick over all their cars "
+BATCH_HELP = (f"runs each worker or Ray task steps together, one network call per control tick over all their cars "
               f"(default {DEFAULT_BATCH}; 1: one at a time); results are the same at any size")
 
 # How often a worker checks that its parent is alive [s]; a worker outlives it by at most this.

@@ -8,7 +8,7 @@ Every run is `avsim.runner.run_recorded`, exactly what `avsim run` executes, so 
 can be re-run alone with `avsim run --config FILE --cell NAME --seed K`. A run that raises
 becomes a `failed` record carrying the error, and the batch goes on.
 
-Backends (`BACKENDS`); both run `run_task.execute(spec, root)` for each spec:
+Backends (`BACKENDS`); both run `run_task.execute_group(specs, root)` for each lock-step group:
     local   this process (workers 1) or a pool of `workers` `spawn`ed processes on this
             machine; each builds its own MuJoCo model and EGL context (an OpenGL context
             must never cross a fork). A worker process that dies stops the batch. The
@@ -18,7 +18,7 @@ Backends (`BACKENDS`); both run `run_task.execute(spec, root)` for each spec:
             (`avsim.experiments.ray_backend`, an optional extra: pip install 'avsim[ray]').
 Records, `on_record` and the progress bar are one code path for both.
 
-Many cars per process (`batch`, local backend): each worker steps up to `batch` runs in
+Many cars per process (`batch`, either backend): each worker or Ray task steps up to `batch` runs in
 lock-step (`avsim.lockstep`), one network call per control tick over all their cars' frames.
 A run's record is the same, bit for bit, alone or in a batch of any size (`wall_s` aside: in a
 batch it is the run's share of the batch's time).
@@ -41,7 +41,7 @@ import torch
 
 from avsim.errors import ConfigError
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
-from avsim.experiments.run_task import RunSpec, execute, execute_many, worker_env
+from avsim.experiments.run_task import RunSpec, execute_group, worker_env
 from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
@@ -87,12 +87,11 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
               batch: int = DEFAULT_BATCH) -> list[dict[str, Any]]:
     """Run every spec; returns their records in the order of `specs`.
 
-    workers: runs at once. local: processes (1 runs in this process); ray: the local cluster's
-    CPUs, or with `address` at most that many runs in flight (None: as many as the cluster
+    workers: groups at once. local: processes (1 runs in this process); ray: the local cluster's
+    CPUs, or with `address` at most that many tasks in flight (None: as many as the cluster
     takes). on_record is called in this process as each run finishes (in finishing order),
     e.g. to append it to a results file. backend, address: see the module docstring.
-    batch: runs each local worker steps in lock-step (1: one at a time); the ray backend runs one
-    run a task.
+    batch: runs each local worker or Ray task steps in lock-step (1: one at a time).
     """
     from tqdm import tqdm
 
@@ -106,7 +105,10 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
     root_str = str(root) if root is not None else None
     records: list[dict[str, Any] | None] = [None] * len(specs)
     if backend == "ray":
-        results = ray_results(specs, root_str, workers=workers, address=address)
+        # With an address and no --workers the cluster's CPUs decide the runs in flight, so the
+        # groups are `batch` long; otherwise cut as for a local pool of `workers`.
+        groups = lockstep_groups(len(specs), workers or len(specs), batch)
+        results = ray_results(specs, groups, root_str, workers=workers, address=address)
     else:
         results = _local_results(specs, workers, root_str, batch)
     bar = tqdm(total=len(specs), desc=description, unit="run", disable=not progress, dynamic_ncols=True)
@@ -132,7 +134,7 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None, bat
     groups = lockstep_groups(len(specs), workers, batch)
     if workers <= 1:
         for group in groups:
-            yield from _group_records(group, _run_group([specs[i] for i in group], root))
+            yield from _group_records(group, execute_group([specs[i] for i in group], root))
         return
     context = multiprocessing.get_context("spawn")
     # The workers die with this process (a SIGKILL leaves no orphans) and ignore Ctrl-C, which
@@ -141,7 +143,7 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None, bat
                                initargs=(worker_env(workers), os.getpid()))
     finished = False
     try:
-        futures = {pool.submit(_run_group, [specs[i] for i in group], root): group for group in groups}
+        futures = {pool.submit(execute_group, [specs[i] for i in group], root): group for group in groups}
         for future in as_completed(futures):
             yield from _group_records(futures[future], future.result())
         finished = True
@@ -157,11 +159,6 @@ def lockstep_groups(count: int, workers: int, batch: int) -> list[list[int]]:
     that every worker gets a group (a 10-run batch of 8 on 2 workers is two groups of 5)."""
     size = max(1, min(batch, -(-count // max(1, workers))))
     return [list(range(start, min(start + size, count))) for start in range(0, count, size)]
-
-
-def _run_group(specs: list[RunSpec], root: str | None) -> list[dict[str, Any]]:
-    """The records of one group: a lone run as `execute` runs it, more in lock-step."""
-    return [execute(specs[0], root)] if len(specs) == 1 else execute_many(specs, root)
 
 
 def _group_records(group: list[int], records: list[dict[str, Any]]) -> Iterator[tuple[int, dict[str, Any]]]:

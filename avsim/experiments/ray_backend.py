@@ -6,17 +6,18 @@
 
 Why: the local pool stops at one machine's cores; a Ray cluster spreads the same runs over many.
 
-Each task is `avsim.experiments.run_task.execute(spec, root)`, the function a local pool worker
-runs, in a Ray worker process: a fresh Python process, so it builds its own MuJoCo model and
+Each task is `avsim.experiments.run_task.execute_group(specs, root)` on one lock-step group (see
+`batch.lockstep_groups`), the function a local pool worker runs, in a Ray worker process: a fresh Python process, so it builds its own MuJoCo model and
 EGL context as a spawned pool worker does. A task asks for one CPU (a run is single-threaded,
-see `PerceptionConfig.threads`), so a node runs as many at once as it has CPUs. The spec
-(`RunSpec`, its `SimConfig` a frozen dataclass) is pickled to the worker; the record comes back.
+see `PerceptionConfig.threads`; a lock-step group shares that thread), so a node runs as many at
+once as it has CPUs. The specs (`RunSpec`, its `SimConfig` a frozen dataclass) are pickled to
+the worker; the records come back.
 
 What it guarantees, as the local pool does: one record per spec, handed over in finishing
 order; the same record for the same spec on either backend (a run is seeded by its config;
 `wall_s` aside); a run that raises is a `failed` record. Beyond the pool: a worker process
 that dies (a crash, out of memory, a lost node) is run again by Ray up to `MAX_RETRIES`
-times, then it is a `failed` record too, and the batch goes on.
+times, then each run of its group is a `failed` record, and the batch goes on.
 
 What it needs from a cluster: on every node, avsim at the same version with the same Python
 and Ray, and the files the configs name (sign textures, detector weights) at the same paths.
@@ -39,7 +40,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from avsim.errors import ConfigError
-from avsim.experiments.run_task import execute, failed_record, worker_env
+from avsim.experiments.run_task import execute_group, failed_record, worker_env
 
 INSTALL_HINT = "pip install 'avsim[ray]'"
 # Times Ray reruns a task whose worker process died before the run is recorded as failed.
@@ -126,31 +127,34 @@ def session(address: str | None, workers: int | None) -> Iterator[Any]:
         ray.shutdown()
 
 
-def ray_results(specs: Sequence[Any], root: str | None, *, workers: int | None,
+def ray_results(specs: Sequence[Any], groups: Sequence[Sequence[int]], root: str | None, *, workers: int | None,
                 address: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
-    """Run `specs` (RunSpecs) as Ray tasks; yield (index into specs, record) as each finishes.
+    """Run `specs` (RunSpecs) as Ray tasks, one a lock-step group; yield (index into specs, record)
+    for each run of a group as the group finishes.
 
+    groups: indices into specs, each group one task (`batch.lockstep_groups`).
     workers: the local cluster's CPUs when address is None; with an address, at most that many
-    runs in flight (None: every run is submitted and the cluster's CPUs decide).
+    tasks in flight (None: every task is submitted and the cluster's CPUs decide).
     """
     with session(address, workers) as ray:
-        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute)
-        in_flight = len(specs) if workers is None else workers
-        waiting = iter(enumerate(specs))
-        pending: dict[Any, int] = {}  # ObjectRef -> index into specs
+        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_group)
+        in_flight = len(groups) if workers is None else workers
+        waiting = iter(groups)
+        pending: dict[Any, Sequence[int]] = {}  # ObjectRef -> the group's indices into specs
         try:
             while True:
-                for index, spec in itertools.islice(waiting, max(0, in_flight - len(pending))):
-                    pending[task.remote(spec, root)] = index
+                for group in itertools.islice(waiting, max(0, in_flight - len(pending))):
+                    pending[task.remote([specs[i] for i in group], root)] = group
                 if not pending:
                     return
                 [ref], _ = ray.wait(list(pending), num_returns=1)
-                index = pending.pop(ref)
+                group = pending.pop(ref)
                 try:
-                    record = ray.get(ref)
+                    records = ray.get(ref)
                 except ray.exceptions.RayError as exc:  # worker died MAX_RETRIES + 1 times, or task lost
-                    record = failed_record(specs[index], f"{type(exc).__name__}: {_first_line(exc)}")
-                yield index, record
+                    error = f"{type(exc).__name__}: {_first_line(exc)}"
+                    records = [failed_record(specs[i], error) for i in group]
+                yield from zip(group, records)
         finally:
             # Stopped early (an error in the caller, Ctrl-C): the cluster need not finish the batch.
             for ref in pending:

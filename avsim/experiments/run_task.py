@@ -126,6 +126,12 @@ def execute_many(specs: Sequence[RunSpec], root: str | None = None) -> list[dict
     return [record_of(spec, output, root) for spec, output in zip(specs, outputs)]
 
 
+def execute_group(specs: Sequence[RunSpec], root: str | None = None) -> list[dict[str, Any]]:
+    """The records of one lock-step group, in order: a lone run as `execute` runs it, more in
+    lock-step (`execute_many`); a pool worker's or a Ray task's unit of work."""
+    return [execute(specs[0], root)] if len(specs) == 1 else execute_many(specs, root)
+
+
 def record_of(spec: RunSpec, output: RunOutput | Exception, root: str | None = None) -> dict[str, Any]:
     """The record of a spec's finished run, or of the exception that ended it (a failed record)."""
     if isinstance(output, Exception):

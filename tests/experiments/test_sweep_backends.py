@@ -24,8 +24,8 @@ def _without_wall_time(records: list[dict]) -> list[dict]:
 def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(tmp_path):
     pytest.importorskip("ray")
     sweep = load_sweep(SMOKE)
-    local = run_sweep(sweep, tmp_path / "local", workers=1, progress=False)
-    on_ray = run_sweep(sweep, tmp_path / "ray", workers=2, progress=False, backend="ray")
+    local = run_sweep(sweep, tmp_path / "local", workers=1, progress=False, batch=1)
+    on_ray = run_sweep(sweep, tmp_path / "ray", workers=2, progress=False, backend="ray")  # two lock-step tasks of 2
     local_records, ray_records = read_records(local / "results.jsonl"), read_records(on_ray / "results.jsonl")
     assert [r["status"] for r in ray_records] == ["ok"] * 4
     assert _without_wall_time(ray_records) == _without_wall_time(local_records)
@@ -42,7 +42,7 @@ def test_a_ray_worker_that_dies_is_retried_then_recorded_as_failed_and_the_batch
 
     specs = load_sweep(SMOKE).specs()[:2]
     # Sent to the workers by value (a lambda): the process exits mid-task, as in a segfault or an OOM kill.
-    monkeypatch.setattr(ray_backend, "execute", lambda spec, root=None: os._exit(1))
+    monkeypatch.setattr(ray_backend, "execute_group", lambda specs, root=None: os._exit(1))
     records = batch.run_batch(specs, workers=2, backend="ray", progress=False)
     assert [(r["cell"], r["status"]) for r in records] == [(s.cell, "failed") for s in specs]
     assert all(r["error"].startswith("WorkerCrashedError: ") and "\n" not in r["error"] for r in records)
