@@ -63,10 +63,10 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
 
 
 def _cmd_attack_eval(args: argparse.Namespace) -> int:
-    from avsim.attacks.disappearance import drive_by_frames
-    from avsim.attacks.drive_by_report import plot_confidence_by_detector
-    from avsim.attacks.evaluate import evaluate_texture, fig3_grid
-    from avsim.attacks.report import write_attack_report
+    from avsim.experiments.attacks.disappearance import drive_by_frames
+    from avsim.experiments.attacks.drive_by_report import plot_confidence_by_detector
+    from avsim.experiments.attacks.texture_eval import evaluate_texture, fig3_grid
+    from avsim.experiments.attacks.texture_eval_report import write_attack_report
     from avsim.config import SimConfig
     from avsim.world.scene import resolve_sign_texture
     from avsim.world.textures import TEXTURE_DIR
@@ -102,14 +102,14 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_attack_sweep(args: argparse.Namespace) -> int:
-    from avsim.attacks.sweep import BUDGET_KEY, budget_sweep
+    from avsim.experiments.attacks.budget_sweep import BUDGET_KEY, budget_sweep
 
     if args.method not in BUDGET_KEY:
         raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
     budgets = [float(b) for b in args.budgets]  # each in (0, 1] (number_list_flag)
     protocol = None
     if args.closed_loop:
-        from avsim.attacks.budget_success import load_protocol
+        from avsim.experiments.attacks.budget_success import load_protocol
 
         protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
     csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
