@@ -182,7 +182,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         run_profile(quick=args.quick)
         return 0
     if args.recording:
-        from avsim.recording.overhead import print_recording_overhead
+        from avsim.bench_recording import print_recording_overhead
 
         print_recording_overhead(repeats=1 if args.quick else 3)
         return 0
