@@ -137,9 +137,8 @@ LIBRARY_PACKAGES = ("avsim.world", "avsim.vehicle", "avsim.sensors", "avsim.perc
 
 
 def is_application(package: str) -> bool:
-    """The layers built on the library: experiments, the gym environment and the CLI modules."""
-    return package in ("avsim.experiments", "avsim.gym", "avsim.cli", "avsim.__main__") \
-        or package.startswith("avsim.cli_")
+    """The layers built on the library: experiments, the gym environment and the command line."""
+    return package in ("avsim.experiments", "avsim.gym", "avsim.cli", "avsim.__main__")
 
 
 def test_the_library_imports_no_experiments_gym_or_cli() -> None:
