@@ -3,6 +3,9 @@
 A function-level import that closes a cycle hides it from Python's import machinery but not from a
 reader: the two modules still need each other, and the shared piece belongs in a third module. Lazy
 imports that close no cycle (the CLI's, to keep `avsim --help` fast) are fine and not flagged.
+
+The same holds one level up, between avsim's top-level packages (and top-level modules): no two
+may need each other, and the library packages import nothing from the layers built on them.
 """
 
 from __future__ import annotations
@@ -97,3 +100,50 @@ def test_the_package_has_no_import_cycles() -> None:
     cycles = strongly_connected(without_package_inits(import_graph()))
     assert not cycles, "modules that import each other (move the shared piece into a third module): " + "; ".join(
         " <-> ".join(sorted(c)) for c in cycles)
+
+
+def package_of(module: str) -> str:
+    """The top-level piece of avsim a module belongs to: 'avsim.experiments' for
+    'avsim.experiments.attacks.success', 'avsim.loop' for the module avsim.loop itself."""
+    return ".".join(module.split(".")[:2])
+
+
+def package_graph() -> dict[str, set[str]]:
+    """Top-level package (or module) -> the other top-level pieces its modules import.
+
+    The root package `avsim` (its `__init__` only sets MUJOCO_GL and the version) is left out."""
+    graph: dict[str, set[str]] = {}
+    for module, deps in import_graph().items():
+        if module == "avsim":
+            continue
+        targets = graph.setdefault(package_of(module), set())
+        targets.update(package_of(dep) for dep in deps if dep != "avsim")
+    return {package: deps - {package} for package, deps in graph.items()}
+
+
+def test_no_two_packages_need_each_other() -> None:
+    # A cycle between packages hides from the module-level test when no single module closes it:
+    # attacks.budget_success imported experiments.batch while experiments.report_sections
+    # imported attacks.success. The lower package must not know the upper one.
+    cycles = strongly_connected(package_graph())
+    assert not cycles, "packages that import each other (move the piece the lower one needs down, or the " \
+                       "piece that needs the upper one up): " + "; ".join(" <-> ".join(sorted(c)) for c in cycles)
+
+
+# The library: what a simulation and an attack are made of. The experiments, the gym environment
+# and the command line are built on it, never the other way round.
+LIBRARY_PACKAGES = ("avsim.world", "avsim.vehicle", "avsim.sensors", "avsim.perception", "avsim.control",
+                    "avsim.attacks")
+
+
+def is_application(package: str) -> bool:
+    """The layers built on the library: experiments, the gym environment and the command line."""
+    return package in ("avsim.experiments", "avsim.gym", "avsim.cli", "avsim.__main__")
+
+
+def test_the_library_imports_no_experiments_gym_or_cli() -> None:
+    graph = import_graph()
+    upward = sorted(f"{module} -> {dep}" for module, deps in graph.items() if package_of(module) in LIBRARY_PACKAGES
+                    for dep in deps if is_application(package_of(dep)))
+    assert not upward, "library modules that import experiments, gym or the CLI (move the piece up, into its " \
+                       "user): " + "; ".join(upward)

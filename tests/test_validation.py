@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from avsim import cli
-from avsim.cli_overrides import parse_set
+from avsim.cli.overrides import parse_set
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
 from avsim.experiments.spec import check_run_names

@@ -7,7 +7,7 @@ map and uses no perception. It is the one policy built with the map handle.
 from __future__ import annotations
 
 from avsim.config import PolicyConfig
-from avsim.control.pinhole import brake_command, required_decel_mps2
+from avsim.control.brake_law import brake_command, required_decel_mps2
 from avsim.control.policy import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.world.hd_map import MapHandle
 

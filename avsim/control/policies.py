@@ -14,7 +14,7 @@ from __future__ import annotations
 from avsim.config import PolicyConfig
 from avsim.control import autopilot, map_prior, study_stack, temporal_vote  # noqa: F401  (their registry entries)
 from avsim.control.estimate import DeadReckonedEstimate
-from avsim.control.pinhole import brake_command, required_decel_mps2
+from avsim.control.brake_law import brake_command, required_decel_mps2
 from avsim.control.policy import (POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel, Observation,
                                   PolicyContext)
 

@@ -23,7 +23,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from avsim.config import PolicyConfig
-from avsim.control.pinhole import pinhole_distance_m
+from avsim.sensors.pinhole import pinhole_distance_m
 from avsim.perception.base import Detection
 from avsim.registry import Registry
 

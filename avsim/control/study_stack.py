@@ -15,9 +15,10 @@ The node's rules (facts from its description, not its code):
 from __future__ import annotations
 
 from avsim.config import PolicyConfig
-from avsim.control.pinhole import pinhole_distance_m, required_decel_mps2
+from avsim.control.brake_law import required_decel_mps2
 from avsim.control.policy import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.perception.base import Detection
+from avsim.sensors.pinhole import pinhole_distance_m
 
 # The node's constants.
 A_MAX_MPS2 = 9.81

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
-from avsim.attacks import success as attack_success
+from avsim.experiments.attacks import success as attack_success
 from avsim.config import SimConfig
 from avsim.experiments.report_cells import Cells, fmt, markdown_table, run_full_brake_decel_mps2
 from avsim.experiments.spec import Experiment
@@ -121,7 +121,7 @@ def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
 
 
 def attack_success_section(cells: Cells, experiment: Experiment) -> list[str]:
-    """Closed-loop attack success per cell (`avsim.attacks.success`), each attacked cell paired
+    """Closed-loop attack success per cell (`avsim.experiments.attacks.success`), each attacked cell paired
     with the clean cell of the same town, placement, policy and perception; then pooled over
     towns and placements per sign, perception and policy."""
     stem = experiment.path.stem

@@ -54,7 +54,7 @@ TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary"
 # "sensitivity" gives one table per policy or perception constant that varies across the cells.
 # "stop_rates" gives each policy's stop rate per town and placement with its Wilson interval.
 # "attack_success" gives each cell's closed-loop attack success rate, overrun and braking delay
-# against the clean cell of the same town, placement, policy and perception (`avsim.attacks.success`).
+# against the clean cell of the same town, placement, policy and perception (`avsim.experiments.attacks.success`).
 REPORT_KINDS = ("cells", "table3", "table1", "table2", "fig3", "adaptive", "compare", "sensitivity", "stop_rates",
                 "attack_success")
 DEFAULT_SEEDS = 5

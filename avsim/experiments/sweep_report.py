@@ -126,7 +126,7 @@ class Strength:
 
 def sign_strength(sign: str) -> Strength:
     """Read the budget of `sign` from the JSON record beside its PNG; unknown budgets stay None."""
-    from avsim.attacks.sweep import BUDGET_KEY
+    from avsim.experiments.attacks.budget_sweep import BUDGET_KEY
     from avsim.world.scene import resolve_sign_texture
 
     if sign == "clean":

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from avsim.config import CameraConfig
-from avsim.control.pinhole import pinhole_distance_m
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
 from avsim.perception.detector.data import DatasetError, parse_line, read_rgb, split_lines
+from avsim.sensors.pinhole import pinhole_distance_m
 from avsim.stats import wilson_interval
 
 DIST_BINS_M = ((5, 15), (15, 25), (25, 35), (35, 45), (45, 60), (60, 80), (80, 100), (100, 120), (120, 140),

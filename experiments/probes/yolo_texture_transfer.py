@@ -1,6 +1,6 @@
 """Probe: how much of each shipped texture transfers to YOLOv3-tiny (--perception yolo)?
 
-Drive-bys of the front camera (avsim.attacks.disappearance: the closed loop's frame spacing at
+Drive-bys of the front camera (avsim.experiments.attacks.disappearance: the closed loop's frame spacing at
 85 km/h, 60 m down to 4 m, lighting and sensor noise drawn per drive, the same drives for every
 texture) under `--perception yolo` at its defaults, per texture:
 - the disappearance rate at 10-41 m: frames with no stop-sign detection at or above the braking
@@ -20,7 +20,7 @@ import argparse
 
 import numpy as np
 
-from avsim.attacks.disappearance import drive_by_frames
+from avsim.experiments.attacks.disappearance import drive_by_frames
 
 SIGNS = ("clean", "chen", "eykholt", "lu_v2", "lu_v3", "yang", "driveby_detector", "driveby_coco", "driveby_ensemble")
 RANGE_M = (10.0, 41.0)

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from avsim import cli
-from avsim.cli_recording import RECORD_CHOICES
+from avsim.cli.recording_modes import RECORD_CHOICES
 from avsim.config import SimConfig
 from avsim.errors import ConfigError
 from avsim.experiments.failures import is_failed_run

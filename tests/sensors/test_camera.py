@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from avsim.control.pinhole import pinhole_distance_m
+from avsim.sensors.pinhole import pinhole_distance_m
 from avsim.errors import RenderError
 from avsim.loop import ClosedLoop
 from avsim.sensors import gl

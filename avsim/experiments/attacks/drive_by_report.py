@@ -1,4 +1,4 @@
-"""Markdown and figures of the per-frame drive-by metrics (`avsim.attacks.disappearance`), per
+"""Markdown and figures of the per-frame drive-by metrics (`avsim.experiments.attacks.disappearance`), per
 texture and detector: disappearance by distance, first confident detection and its delay
 against the clean sign, box height, the transfer matrix and Fig. 3 for both detectors."""
 
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avsim.attacks.disappearance import DriveBys
+from avsim.experiments.attacks.disappearance import DriveBys
 
 # The frames the braking gate lets `baseline` act on (true bumper-to-sign distance [m]): from
 # the 40 m gate (41 m to the sign) down to where the front camera loses the sign.

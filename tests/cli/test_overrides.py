@@ -1,8 +1,8 @@
-"""`--set KEY=VALUE` parsing (avsim/cli_overrides.py)."""
+"""`--set KEY=VALUE` parsing (avsim/cli/overrides.py)."""
 
 import pytest
 
-from avsim.cli_overrides import merge_overrides, parse_set
+from avsim.cli.overrides import merge_overrides, parse_set
 from avsim.errors import ConfigError
 
 

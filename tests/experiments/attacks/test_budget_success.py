@@ -4,11 +4,11 @@ from pathlib import Path
 
 import pytest
 
-from avsim.attacks import budget_success
+from avsim.experiments.attacks import budget_success
 from avsim.errors import ConfigError
 from avsim.experiments.results_file import read_records
 
-PROTOCOL = Path(__file__).resolve().parents[2] / "experiments" / "attacks" / "success_town07.toml"
+PROTOCOL = Path(__file__).resolve().parents[3] / "experiments" / "attacks" / "success_town07.toml"
 
 
 def test_a_textures_runs_differ_from_the_clean_ones_only_in_the_sign():

@@ -1,6 +1,6 @@
 """`avsim attack generate | eval | sweep`: the attack subcommands and their arguments.
 
-`avsim.cli` adds them to its parser (`add_attack_commands`) and is their error boundary: every
+`avsim.cli.command` adds them to its parser (`add_commands`) and is their error boundary: every
 check here raises a one-line ConfigError before anything is rendered or optimised.
 """
 
@@ -9,14 +9,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from avsim.cli_overrides import parse_set
-from avsim.cli_recording import add_recording_modes
+from avsim.cli.flags import SEED_FLAG
+from avsim.cli.overrides import parse_set
+from avsim.cli.recording_modes import add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.outputs import FILE, FOLDER, add_output_argument
 from avsim.validation import config_flag, number_flag, number_list_flag
 
-SEED_FLAG = config_flag(ScenarioConfig, "seed")
 STEPS_FLAG = number_flag(1, 100_000, integer=True)
 
 
@@ -63,10 +63,10 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
 
 
 def _cmd_attack_eval(args: argparse.Namespace) -> int:
-    from avsim.attacks.disappearance import drive_by_frames
-    from avsim.attacks.drive_by_report import plot_confidence_by_detector
-    from avsim.attacks.evaluate import evaluate_texture, fig3_grid
-    from avsim.attacks.report import write_attack_report
+    from avsim.experiments.attacks.disappearance import drive_by_frames
+    from avsim.experiments.attacks.drive_by_report import plot_confidence_by_detector
+    from avsim.experiments.attacks.texture_eval import evaluate_texture, fig3_grid
+    from avsim.experiments.attacks.texture_eval_report import write_attack_report
     from avsim.config import SimConfig
     from avsim.world.scene import resolve_sign_texture
     from avsim.world.textures import TEXTURE_DIR
@@ -102,14 +102,14 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_attack_sweep(args: argparse.Namespace) -> int:
-    from avsim.attacks.sweep import BUDGET_KEY, budget_sweep
+    from avsim.experiments.attacks.budget_sweep import BUDGET_KEY, budget_sweep
 
     if args.method not in BUDGET_KEY:
         raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
     budgets = [float(b) for b in args.budgets]  # each in (0, 1] (number_list_flag)
     protocol = None
     if args.closed_loop:
-        from avsim.attacks.budget_success import load_protocol
+        from avsim.experiments.attacks.budget_success import load_protocol
 
         protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
     csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
@@ -118,7 +118,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_attack_commands(sub) -> None:
+def add_commands(sub) -> None:
     attack = sub.add_parser("attack", help="optimise adversarial stop-sign textures and measure them in renders")
     asub = attack.add_subparsers(dest="attack_command", required=True)
     gen = asub.add_parser("generate", help="optimise one texture against a detector (or remake one with --from)")

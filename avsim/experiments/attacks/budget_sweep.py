@@ -4,7 +4,7 @@ For each budget the method is optimised afresh (one shared view bank), saved, an
 measured in MuJoCo renders: the front camera's mean stop-sign confidence at the fixed
 distances and the first-detection distance, in town07 at the standard placement. With
 `--closed-loop FILE` each texture (and the clean sign) is also driven past under that
-attack-success protocol (`avsim.attacks.budget_success`), and the sweep reports the closed-loop
+attack-success protocol (`avsim.experiments.attacks.budget_success`), and the sweep reports the closed-loop
 success rate with its Wilson 95 % interval, the overrun and the braking delay per budget.
 """
 
@@ -14,10 +14,10 @@ import csv
 import io
 from pathlib import Path
 
-from avsim.attacks.budget_success import closed_loop_success
-from avsim.attacks.evaluate import evaluate_texture
+from avsim.experiments.attacks.budget_success import closed_loop_success
+from avsim.experiments.attacks.texture_eval import evaluate_texture
 from avsim.attacks.generate import check_hyperparameters, default_bank, generate, prepare
-from avsim.attacks.success import Success
+from avsim.experiments.attacks.success import Success
 from avsim.config import SimConfig
 from avsim.experiments.spec import Experiment
 from avsim.metrics import write_text_atomic

@@ -6,8 +6,8 @@ import json
 import math
 from pathlib import Path
 
-from avsim.attacks.drive_by_report import disappearance_section, source_of, transfer_section
-from avsim.attacks.evaluate import FIXED_DISTANCES_M, TextureReport, display_name
+from avsim.experiments.attacks.drive_by_report import disappearance_section, source_of, transfer_section
+from avsim.experiments.attacks.texture_eval import FIXED_DISTANCES_M, TextureReport, display_name
 
 
 def _fmt(value: float | None, digits: int = 2) -> str:

@@ -1,7 +1,7 @@
 """The batch commands' recording flags, `--rrd none|failed|all` and `--mcap none|failed|all`.
 
 Apart from `avsim.experiments.recordings`, which applies them, because the command line must
-not import the simulator before it has checked the renderer (`avsim.cli`).
+not import the simulator before it has checked the renderer (`avsim.cli.command`).
 """
 
 from __future__ import annotations

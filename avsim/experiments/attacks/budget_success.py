@@ -5,7 +5,7 @@
 sensor noise and lighting drawn per seed) and runs its cell named "clean" once with the clean
 sign and once with each budget's texture in its place, at the file's seeds. Only the sign
 differs between a texture's runs and the clean ones, so seed k meets the same start, noise
-and light with every sign, and the braking delay is paired by seed (`avsim.attacks.success`).
+and light with every sign, and the braking delay is paired by seed (`avsim.experiments.attacks.success`).
 Every run is `avsim run`'s closed loop: the stop position comes from the physics, the
 detections from the detector on the rendered frames.
 """
@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from avsim.attacks.success import Success, success
+from avsim.experiments.attacks.success import Success, success
 from avsim.config import with_overrides
 from avsim.experiments.batch import run_batch
 from avsim.experiments.recordings import with_recordings

@@ -6,14 +6,14 @@ from pathlib import Path
 
 import pytest
 
-from avsim.attacks.disappearance import DriveBys, Frame
-from avsim.attacks.drive_by_report import delay_m, disappearance_section, mean_first_m, transfer_section
-from avsim.attacks.evaluate import sign_detection
-from avsim.attacks.success import success, success_row
+from avsim.experiments.attacks.disappearance import DriveBys, Frame
+from avsim.experiments.attacks.drive_by_report import delay_m, disappearance_section, mean_first_m, transfer_section
+from avsim.experiments.attacks.texture_eval import sign_detection
+from avsim.experiments.attacks.success import success, success_row
 from avsim.experiments.spec import load_experiment
 from avsim.perception.base import Detection
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 ATTACK_EXPERIMENTS = ROOT / "experiments" / "attacks"
 
 
@@ -128,7 +128,7 @@ def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_un
 
 
 def test_a_texture_source_names_its_detector_and_the_purification_it_went_through():
-    from avsim.attacks.drive_by_report import source_of
+    from avsim.experiments.attacks.drive_by_report import source_of
 
     assert source_of({}) == "-"
     assert source_of({"detector": "coco"}) == "coco"

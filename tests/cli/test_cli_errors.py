@@ -19,7 +19,7 @@ from avsim import cli
 from avsim.config import MAX_SEED
 from helpers import write_files
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
 
 
@@ -222,7 +222,7 @@ def _patched_command(monkeypatch, error: BaseException) -> None:
     def _raise(args):
         raise error
 
-    monkeypatch.setattr(cli, "_cmd_bench", _raise)
+    monkeypatch.setattr(cli.bench, "_cmd_bench", _raise)
 
 
 def test_a_bug_is_one_line_with_the_path_of_its_full_traceback(monkeypatch, capsys):

@@ -24,7 +24,7 @@ from avsim.experiments.results_file import read_records
 from avsim.runner import run_config
 from helpers import start_avsim, wait_until
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "experiments" / "sweeps" / "sweep_smoke.toml"
 TIMEOUT_S = 120.0
 # A short oracle run: 100 m from rest at 85 km/h, a few seconds of wall time.

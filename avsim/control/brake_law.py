@@ -1,16 +1,7 @@
-"""The study's defence-1 arithmetic: pinhole range from a box height, and the v^2/2d brake law."""
+"""The study's brake law: the constant deceleration v^2/2d that stops within a distance, and the brake
+command that asks for it. The pinhole range it is fed with is `avsim.sensors.pinhole`."""
 
 from __future__ import annotations
-
-
-def pinhole_distance_m(sign_height_m: float, f_px: float, box_height_px: float) -> float:
-    """Depth of a sign along the optical axis: d = H_real * f / h_bbox [m].
-
-    f_px = H_img / (2 tan(fovy / 2)) is the focal length in pixels.
-    """
-    if box_height_px <= 0:
-        raise ValueError(f"box height must be positive, got {box_height_px}")
-    return sign_height_m * f_px / box_height_px
 
 
 def required_decel_mps2(speed_mps: float, stop_dist_m: float) -> float:

@@ -1,0 +1,106 @@
+"""The batch commands: `avsim reproduce` (the study's tables), `avsim sweep` (a grid of config
+values) and `avsim leaderboard` (every defence against every attack), each run by a pool of
+worker processes or by Ray."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from avsim.cli.flags import BATCH_FLAG, WORKERS_FLAG
+from avsim.cli.recording_modes import add_recording_modes
+from avsim.outputs import FOLDER, add_output_argument
+from avsim.workers import BATCH_HELP, DEFAULT_BATCH
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from avsim.experiments.reproduce import reproduce
+
+    paths = [Path(p) for p in args.experiments] if args.experiments else None
+    out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
+                    backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
+                    rrd=args.rrd_mode, mcap=args.mcap_mode)
+    print((out / "report.md").read_text())
+    print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd_mode}, --mcap {args.mcap_mode}) "
+                                                             f"under {out}/rrd/ and {out}/mcap/" if args.rrd_mode != "none" or args.mcap_mode != "none" else ""))
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from avsim.experiments.sweep import load_sweep, run_sweep
+
+    sweep = load_sweep(args.file, yes=args.yes)  # checks the size, then every grid value, before anything runs
+    out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
+                    backend=args.backend, address=args.address, batch=args.batch, rrd=args.rrd_mode, mcap=args.mcap_mode)
+    print((out / "summary.md").read_text())
+    print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
+    return 0
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    from avsim.experiments.leaderboard import DEFAULT_FILE, load_leaderboard
+    from avsim.experiments.leaderboard_run import run_leaderboard
+
+    board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
+    out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
+                          progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch,
+                          rrd=args.rrd_mode, mcap=args.mcap_mode)
+    print((out / "leaderboard.md").read_text())
+    print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
+    return 0
+
+
+def add_commands(sub) -> None:
+    rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
+    rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
+    rep.add_argument("--all", action="store_true",
+                     help="also every other experiment file: the sensitivity, the COCO network's closed loop and the "
+                          "attack-success files (hours on 2 cores; the leaderboard is `avsim leaderboard`)")
+    rep.add_argument("--workers", type=WORKERS_FLAG, help="runs at once: worker processes, or the local Ray cluster's CPUs "
+                                                  "(default: one per core); with --address, at most this many in flight")
+    rep.add_argument("--backend", choices=("local", "ray"), default="local",
+                     help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
+    rep.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    rep.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+    add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
+    rep.add_argument("--experiments", nargs="+", metavar="FILE",
+                     help="experiment files to run instead of the study's (experiments/*.toml)")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
+    add_recording_modes(rep)
+    rep.set_defaults(func=_cmd_reproduce)
+
+    swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
+                                       "and safety_map.png")
+    swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
+    add_output_argument(swp, "--out", kind=FOLDER, required=True, help="results folder")
+    swp.add_argument("--workers", type=WORKERS_FLAG,
+                     help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
+                          "with --address, at most this many runs in flight (default: the cluster's CPUs)")
+    swp.add_argument("--backend", choices=("local", "ray"), default="local",
+                     help="local: a pool of processes on this machine (default); ray: Ray tasks, on a local "
+                          "cluster or the one at --address (pip install 'avsim[ray]')")
+    swp.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    swp.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+    swp.add_argument("--resume", action="store_true",
+                     help="keep the ok runs already in OUT/results.jsonl and run only the others")
+    swp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
+    add_recording_modes(swp)
+    swp.set_defaults(func=_cmd_sweep)
+
+    board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "
+                                               "writes leaderboard.md, leaderboard.png and results.jsonl")
+    board.add_argument("file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
+    add_output_argument(board, "--out", kind=FOLDER, default="results/leaderboard", help="results folder")
+    board.add_argument("--quick", action="store_true", help="the file's quick subset (quick_seeds per place and scenario)")
+    board.add_argument("--workers", type=WORKERS_FLAG,
+                       help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)")
+    board.add_argument("--backend", choices=("local", "ray"), default="local",
+                       help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
+    board.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+    board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
+    board.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_recording_modes(board)
+    board.set_defaults(func=_cmd_leaderboard)

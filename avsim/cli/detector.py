@@ -1,0 +1,108 @@
+"""`avsim detector make-data | train | export | eval`: the sign detector's data, training, export
+and evaluation."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from avsim.cli.flags import INT_FLAG, SEED_FLAG
+from avsim.errors import ConfigError
+from avsim.outputs import FILE, FOLDER, add_output_argument, check_output_file
+from avsim.validation import number_flag
+
+
+def _cmd_make_data(args: argparse.Namespace) -> int:
+    from avsim.perception.datagen import DataGenConfig, make_dataset
+
+    config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
+                           seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format)
+    out = make_dataset(args.out, config, overwrite=args.overwrite)
+    print(f"wrote {config.n_train} training and {config.n_val} validation images to {out} ({config.label_format} labels)")
+    return 0
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from avsim.perception.detector.train import run_from_args
+
+    return run_from_args(args)
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    if args.format == "onnx":
+        from avsim.perception.detector.export_onnx import export_onnx
+        from avsim.perception.detector.weights import resolve_weights_path
+
+        out = check_output_file(args.out or "models/sign_detector.onnx", "--out")  # the default is checked too
+        path = export_onnx(resolve_weights_path(args.checkpoint or ""), out)
+    else:
+        from avsim.perception.detector.weights import export_weights
+
+        if not args.checkpoint:
+            raise ConfigError("avsim detector export --format pt needs --checkpoint (written by `avsim detector train`)")
+        path = export_weights(args.checkpoint, check_output_file(args.out or "models/sign_detector.pt", "--out"))
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from avsim.perception.detector.weights import resolve_weights_path
+    from avsim.perception.detector.infer import SignDetectorRunner
+    from avsim.perception.evaluation import evaluate, write_report
+
+    weights = resolve_weights_path(args.weights)
+    # Score every box down to a low confidence: AP needs the whole ranking.
+    runner = SignDetectorRunner(weights, conf_threshold=0.01)
+    report = evaluate(runner.detect, args.data, conf_threshold=args.conf, split=args.split, limit=args.limit,
+                      progress=not args.no_progress)
+    report_path, plot_path = write_report(report, args.out, f"Sign detector {weights.name} on {args.data} ({args.split})")
+    print(report_path.read_text())
+    print(f"wrote {report_path} and {plot_path}")
+    return 0
+
+
+def add_commands(sub) -> None:
+    detector = sub.add_parser("detector", help="make data for, train and evaluate the sign detector")
+    dsub = detector.add_subparsers(dest="detector_command", required=True)
+    data = dsub.add_parser("make-data", help="render labelled sign images (boxes from segmentation)")
+    add_output_argument(data, "--out", kind=FOLDER, default="data/signs", help="dataset directory (default data/signs)")
+    data.add_argument("--train", type=INT_FLAG, default=6000, help="training images")
+    data.add_argument("--val", type=INT_FLAG, default=1000, help="validation images (held-out town seed and lighting)")
+    data.add_argument("--images-per-scene", type=INT_FLAG, default=25)
+    data.add_argument("--seed", type=SEED_FLAG, default=0)
+    data.add_argument("--workers", type=INT_FLAG, default=min(2, os.cpu_count() or 1))
+    data.add_argument("--max-dist-m", type=number_flag(unit="m"), default=80.0,
+                      help="farthest target sign [m] (default 80; 160 to measure the perception's range)")
+    data.add_argument("--format", choices=("jsonl", "coco", "yolo"), default="jsonl",
+                      help="labels: jsonl (default, read by detector train/eval), coco (annotations/instances_SPLIT.json) "
+                           "or yolo (labels/SPLIT/*.txt and data.yaml, for ultralytics)")
+    data.add_argument("--overwrite", action="store_true", help="replace an existing dataset directory")
+    data.set_defaults(func=_cmd_make_data)
+
+    from avsim.perception.detector.train_args import add_train_arguments
+
+    train = dsub.add_parser("train", help="train the detector on a generated dataset (resumable checkpoint)")
+    add_train_arguments(train)
+    train.set_defaults(func=_cmd_train)
+
+    export = dsub.add_parser("export", help="strip a training checkpoint to deployable weights (e.g. models/sign_detector.pt), "
+                                            "or write the detector as ONNX in the YOLOv8/YOLO11 output layout")
+    export.add_argument("--format", choices=("pt", "onnx"), default="pt",
+                        help="pt: deployable PyTorch weights (default); onnx: (1, 3, 480, 640) RGB in [0, 1] -> "
+                             "(1, 4 + 3, N) cx, cy, w, h, class scores, for --perception onnx (needs avsim[onnx])")
+    export.add_argument("--checkpoint", help="checkpoint written by `avsim detector train` (required for pt; for onnx "
+                                             "the default is the shipped models/sign_detector.pt)")
+    add_output_argument(export, "--out", kind=FILE,
+                        help="file to write (default models/sign_detector.pt, or models/sign_detector.onnx)")
+    export.set_defaults(func=_cmd_export)
+
+    evaluate = dsub.add_parser("eval", help="score weights on the held-out split; writes report.md and a plot")
+    evaluate.add_argument("--weights", default="", help="weights file (default: the shipped models/sign_detector.pt)")
+    evaluate.add_argument("--data", default="data/signs", help="dataset directory (default data/signs)")
+    evaluate.add_argument("--split", default="val", choices=("val", "train"))
+    evaluate.add_argument("--conf", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
+                          help="confidence threshold for recall and false positives")
+    evaluate.add_argument("--limit", type=number_flag(1, None, integer=True), help="score only the first N images")
+    add_output_argument(evaluate, "--out", kind=FOLDER, default="results/detector_eval", help="report directory")
+    evaluate.add_argument("--no-progress", action="store_true", help="no progress bar")
+    evaluate.set_defaults(func=_cmd_eval)

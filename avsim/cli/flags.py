@@ -1,0 +1,50 @@
+"""Flags several `avsim` commands share: the scenario flags and `--set`, and the config they make.
+
+The command modules import this (and nothing of the simulator) at the top, so `avsim --help`
+stays fast and the renderer is checked before MuJoCo is imported (`avsim.cli.command`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from avsim.cli.overrides import merge_overrides, parse_set
+from avsim.config import LoopConfig, ScenarioConfig
+from avsim.validation import config_flag, number_flag
+
+SEED_FLAG = config_flag(ScenarioConfig, "seed")
+WORKERS_FLAG = number_flag(1, 1024, integer=True)
+BATCH_FLAG = number_flag(1, 1024, integer=True)
+# A finite integer whose range the command's own config declares (e.g. DataGenConfig, checked before any work).
+INT_FLAG = number_flag(integer=True)
+
+
+def add_scenario_flags(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--town", help="town name (town03, town07, town10)")
+    parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
+    parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
+    parser.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), help="cruise speed [km/h]")
+    parser.add_argument("--seed", type=SEED_FLAG, help="random seed (start jitter)")
+    parser.add_argument("--physics-dt-s", type=config_flag(LoopConfig, "physics_dt_s"), help="physics step [s] (default 0.002)")
+    parser.add_argument("--control-dt-s", type=config_flag(LoopConfig, "control_dt_s"), help="control and sensing period [s] (default 0.05)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override any config key, e.g. --set policy.baseline_brake=0.9 (repeatable)")
+
+
+def flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The scenario flags and --set as one nested override mapping (--set wins over flags)."""
+    flags = {
+        "scenario": {"town": args.town, "placement": args.placement, "sign": args.sign, "speed_kmh": args.speed_kmh, "seed": args.seed},
+        "loop": {"physics_dt_s": args.physics_dt_s, "control_dt_s": args.control_dt_s},
+        "policy": {"name": getattr(args, "policy", None)},
+        "perception": {"kind": getattr(args, "perception", None)},
+    }
+    overrides = {section: {k: v for k, v in values.items() if v is not None} for section, values in flags.items()}
+    return merge_overrides(overrides, parse_set(args.set))
+
+
+def config_from_args(args: argparse.Namespace):
+    from avsim.config import SimConfig, with_overrides
+
+    return with_overrides(SimConfig(), flag_overrides(args))
