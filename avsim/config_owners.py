@@ -33,7 +33,7 @@ from typing import Any
 from avsim.config import ENSEMBLE_NETWORKS, PerceptionConfig, PolicyConfig, SimConfig
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
-from avsim.perception.factory import CONDITIONAL_KEYS, NETWORK_KEYS, PERCEPTION_KEYS, perception_keys
+from avsim.perception.factory import CONDITIONAL_KEYS, NETWORK_KEYS, PERCEPTION_KEYS, PERCEPTIONS, perception_keys
 
 OWNED_SECTIONS = ("policy", "perception")
 # Keys every run reads, whatever its policy and perception, and why: the two that choose them, and
@@ -53,6 +53,7 @@ def policy_reads(name: str) -> frozenset[str]:
 
 def perception_reads(perception: PerceptionConfig) -> frozenset[str]:
     """The dotted `perception.*` keys the perception of `perception` reads (with the every-run ones)."""
+    PERCEPTIONS.get(perception.kind)  # an unknown kind is refused as such
     return frozenset(f"perception.{key}" for key in perception_keys(perception)) | _every_run("perception")
 
 
