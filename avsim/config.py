@@ -248,7 +248,7 @@ class PerceptionConfig:
     min_box_height_px: float = ranged(1.0, 1, 4096, unit="px")
     # The oracle's range. A ground-truth box has no range of its own, so the oracle reports a
     # sign only once its box is this tall: calibrated to where the learned detector's clean
-    # stop-sign recall on held-out renders falls below 0.5 (README, "Perception range").
+    # stop-sign recall on held-out renders falls below 0.5 (docs/architecture.md, "Perception").
     oracle_min_box_height_px: float = ranged(ORACLE_MIN_BOX_HEIGHT_PX, 1, 4096, unit="px")
     # Detector weights file; "" means the shipped models/sign_detector.pt.
     weights_path: str = ""
