@@ -79,12 +79,15 @@ def set_keys(overrides: Mapping[str, Any]) -> frozenset[str]:
 def readers(dotted: str) -> str:
     """Who reads `dotted`, in words: "policy temporal_vote", "perception coco or an ensemble with
     coco, with perception.coco_input = upscale", "every run (it names the braking policy)"."""
-    if dotted in EVERY_RUN_READS:
-        return f"every run ({EVERY_RUN_READS[dotted]})"
     section, key = dotted.split(".", 1)
     if section == "policy":
         names = [name for name in POLICIES.names() if key in POLICIES.get(name).config_keys]
-        return f"polic{'ies' if len(names) > 1 else 'y'} {', '.join(names)}" if names else "no policy"
+        policies = f"polic{'ies' if len(names) > 1 else 'y'} {', '.join(names)}" if names else "no policy"
+        if dotted in EVERY_RUN_READS:
+            return f"every run ({EVERY_RUN_READS[dotted]})" + (f"; and {policies} brake by it" if names else "")
+        return policies
+    if dotted in EVERY_RUN_READS:
+        return f"every run ({EVERY_RUN_READS[dotted]})"
     kinds = [kind for kind, keys in PERCEPTION_KEYS.items() if key in keys or _conditional_on(key, keys)]
     members = [kind for kind in ENSEMBLE_NETWORKS if key in NETWORK_KEYS[kind] or _conditional_on(key, NETWORK_KEYS[kind])]
     text = f"perception{'s' if len(kinds) > 1 else ''} {', '.join(sorted(kinds))}" if kinds else "no perception"
