@@ -32,6 +32,10 @@ PURIFIERS = ("none", "jpeg", "median")
 ENSEMBLE_FUSIONS = ("or", "and", "k_of_n")
 # Values of PerceptionConfig.ensemble_members (the FRAME_DETECTORS networks an ensemble may hold).
 ENSEMBLE_NETWORKS = ("detector", "coco", "yolo")
+# Values of CameraConfig.offsamples and .seg_supersample, and of PerceptionConfig.purify_median_kernel_px.
+OFFSAMPLES = (0, 1, 2, 4, 8, 16)
+SEG_SUPERSAMPLES = (1, 2, 3, 4)
+MEDIAN_KERNELS_PX = (3, 5, 7, 9)
 # scenario.sign = NO_SIGN: no stop sign at the junction (a speed-limit sign stands on its post).
 NO_SIGN = "none"
 # Values of ScenarioConfig.distractors (world/distractors.py) and .map_error (world/hd_map.py).
@@ -72,8 +76,8 @@ class ScenarioConfig:
     Distances are along the road (world +x); the stop line is at x = 0.
     """
 
-    town: str = "town07"
-    placement: str = "standard"
+    town: str = "town07"  # the town (world/towns/): rural town07, urban town03, downtown town10
+    placement: str = "standard"  # the sign post beyond the lane edge: near 0.5 m, standard 2.0 m, far 5.5 m
     # Name of a texture in textures/ ("clean" is the generated stop sign) or a path to a PNG;
     # "none" (NO_SIGN): no stop sign, a speed-limit sign on its post and no stop line painted.
     sign: str = "clean"
@@ -87,13 +91,13 @@ class ScenarioConfig:
     start_speed_kmh: float = ranged(0.0, 0, 200, unit="km/h")  # the study starts from rest and accelerates
     # Front bumper to stop line at t = 0 [m]; the approach road is 300 m long.
     start_dist_m: float = ranged(230.0, 20, 300, unit="m", note="the approach road is 300 m")
-    seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
+    seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")  # seeds the start jitter and the sensor noise
     # Seeds the town's scenery (building heights, trees, parked cars); fixed per study town.
     layout_seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
     # Seeded jitter of the start position [m]; varies runs of one scenario across seeds.
     start_jitter_m: float = ranged(2.0, 0, 10, unit="m")
-    sun_elevation_deg: float = ranged(50.0, 5, 90, unit="deg")
-    sun_azimuth_deg: float = ranged(30.0, -360, 360, unit="deg")
+    sun_elevation_deg: float = ranged(50.0, 5, 90, unit="deg")  # the sun above the horizon
+    sun_azimuth_deg: float = ranged(30.0, -360, 360, unit="deg")  # the sun's bearing about the vertical
     sun_intensity: float = ranged(1.0, 0.1, 2.0)  # scales the sun's diffuse light
     # Linear fog from fog_start_m to fog_end_m [m] of distance; fog_end_m = 0 means clear air.
     fog_start_m: float = ranged(0.0, 0, 10000, unit="m")
@@ -152,18 +156,18 @@ class VehicleConfig:
     brake_rise_time_s: float = ranged(0.15, 0, 2, lo_open=True, unit="s")
     # Anti-lock brakes and traction control: each wheel's slip is held near abs_target_slip.
     abs_enabled: bool = True
-    traction_control_enabled: bool = True
+    traction_control_enabled: bool = True  # limits the drive torque when a rear wheel spins
     abs_target_slip: float = ranged(0.10, 0.02, 0.5)
     # Body bounce: undamped ride frequency [Hz] and damping ratio of each corner's spring.
     suspension_frequency_hz: float = ranged(1.4, 0.5, 4, unit="Hz", note="a sedan rides at 1.2-1.5")
-    suspension_damping_ratio: float = ranged(0.45, 0.05, 2)
+    suspension_damping_ratio: float = ranged(0.45, 0.05, 2)  # of each corner's spring and damper
     # Tyre friction against slip: flat up to the peak slip, then falling linearly to this share
     # of the road's friction for a locked wheel (avsim/vehicle/tyre.py).
     tyre_peak_slip: float = ranged(0.15, 0.02, 0.5)
-    tyre_sliding_ratio: float = ranged(0.75, 0.2, 1)
-    rolling_resistance_coeff: float = ranged(0.012, 0, 0.5)
+    tyre_sliding_ratio: float = ranged(0.75, 0.2, 1)  # a locked wheel's share of the road's friction
+    rolling_resistance_coeff: float = ranged(0.012, 0, 0.5)  # C_rr, a friction torque at each wheel
     drag_area_m2: float = ranged(0.65, 0, 20, unit="m^2")  # Cd * frontal area of a sedan (0.29 * 2.2 m^2)
-    air_density_kgpm3: float = ranged(1.2, 0, 5, unit="kg/m^3")
+    air_density_kgpm3: float = ranged(1.2, 0, 5, unit="kg/m^3")  # for the aerodynamic drag
 
     def __post_init__(self) -> None:
         check_ranges(self, "vehicle")
@@ -190,8 +194,8 @@ class CameraConfig:
 
     def __post_init__(self) -> None:
         check_ranges(self, "camera")
-        _require(self.offsamples in (0, 1, 2, 4, 8, 16), f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
-        _require(self.seg_supersample in (1, 2, 3, 4), f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
+        _require(self.offsamples in OFFSAMPLES, f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
+        _require(self.seg_supersample in SEG_SUPERSAMPLES, f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
 
     @property
     def f_px(self) -> float:
@@ -212,7 +216,7 @@ class LoopConfig:
     # tiny dt (1e-300) would make the step count absurd.
     physics_dt_s: float = ranged(0.002, 1e-4, 0.01, unit="s")
     control_dt_s: float = ranged(0.05, 0, 0.1, lo_open=True, unit="s", note="CARLA warns above 0.1 s")  # 20 Hz, CARLA's synchronous default
-    max_time_s: float = ranged(60.0, 0, 600, lo_open=True, unit="s")
+    max_time_s: float = ranged(60.0, 0, 600, lo_open=True, unit="s")  # simulated time after which a run ends
 
     def __post_init__(self) -> None:
         check_ranges(self, "loop")
@@ -237,14 +241,14 @@ class PerceptionConfig:
     nothing (for the autopilot, or a Gymnasium agent without a perception).
     """
 
-    kind: str = "detector"
+    kind: str = "detector"  # the perception (class docstring; perception/factory.py)
     # A sensor-model knob for the learned detector: boxes shorter than this are dropped. The
     # default keeps every box the network reports; where to start acting on a far sign is the
     # policy's decision (policy.trigger_dist_m), not the perception's.
     min_box_height_px: float = ranged(1.0, 1, 4096, unit="px")
     # The oracle's range. A ground-truth box has no range of its own, so the oracle reports a
     # sign only once its box is this tall: calibrated to where the learned detector's clean
-    # stop-sign recall on held-out renders falls below 0.5 (README, "Perception range").
+    # stop-sign recall on held-out renders falls below 0.5 (docs/architecture.md, "Perception").
     oracle_min_box_height_px: float = ranged(ORACLE_MIN_BOX_HEIGHT_PX, 1, 4096, unit="px")
     # Detector weights file; "" means the shipped models/sign_detector.pt.
     weights_path: str = ""
@@ -277,7 +281,7 @@ class PerceptionConfig:
     # cameras above the horizon (y = 240), and the car's nose dive under braking only lifts
     # them. (0, 0, width, height) is the whole frame; a region is clipped to the image.
     front_roi_px: tuple[int, int, int, int] = (288, 0, 640, 256)
-    side_roi_px: tuple[int, int, int, int] = (0, 0, 640, 256)
+    side_roi_px: tuple[int, int, int, int] = (0, 0, 640, 256)  # the side camera's region, as front_roi_px
     # `coco`: how a frame becomes the network's input. "resize": the whole frame squeezed to
     # 512x512, exactly as @vladmandic/human feeds the graph; "crop": the region of interest at
     # the camera's resolution; "upscale": that region enlarged by coco_upscale. Boxes are
@@ -299,7 +303,7 @@ class PerceptionConfig:
     # `onnx`: a YOLOv8/YOLO11-style ONNX detector (output [1, 4 + C, N]: cx, cy, w, h, C class
     # scores) and its class names, index = class id; "stop_sign" is the class the policies act on.
     onnx_path: str = ""
-    onnx_classes: tuple[str, ...] = ()
+    onnx_classes: tuple[str, ...] = ()  # its class names, index = class id
     # `yolo`: YOLOv3-tiny (COCO-80, Darknet's files, perception/yolo/), or a user's own Darknet
     # YOLOv3/v4-tiny style files: yolo_cfg + yolo_weights (both or neither; "" = the fetched
     # YOLOv3-tiny) and yolo_names (its class names, one a line; "" = the fetched coco.names).
@@ -312,7 +316,7 @@ class PerceptionConfig:
     yolo_names: str = ""
     yolo_input: str = "upscale"
     yolo_upscale: float = ranged(2.0, 1, 4)
-    yolo_precision: str = "fp32"
+    yolo_precision: str = "fp32"  # "bf16": a bfloat16 copy (perception/yolo/bf16.py)
     # Input purification before the network (a defence, perception/purify.py): "jpeg" re-compresses
     # each frame at purify_jpeg_quality, "median" median-blurs it with a purify_median_kernel_px
     # square kernel; "none" leaves it as rendered. Any pixel perception; not the oracle.
@@ -326,7 +330,7 @@ class PerceptionConfig:
     # `ensemble`: its member networks, the first giving fused boxes (any of ENSEMBLE_NETWORKS, each
     # once, at least two), and for "k_of_n" fusion how many must report a stop sign on one object.
     ensemble_members: tuple[str, ...] = ("detector", "coco")
-    ensemble_k: int = ranged(2, 1, 3)
+    ensemble_k: int = ranged(2, 1, 3)  # with ensemble_fusion = "k_of_n": how many members must agree
 
     def __post_init__(self) -> None:
         check_ranges(self, "perception")
@@ -353,7 +357,7 @@ class PerceptionConfig:
         _require(self.kind != "oracle" or self.purify == "none",
                  "perception.purify works on pixels, and the oracle reads ground truth from the scene; choose a pixel "
                  "perception (detector, coco, yolo, ensemble, onnx) or perception.purify = none")
-        _require(self.purify_median_kernel_px in (3, 5, 7, 9),
+        _require(self.purify_median_kernel_px in MEDIAN_KERNELS_PX,
                  f"perception.purify_median_kernel_px must be 3, 5, 7 or 9 (an odd square kernel), got {self.purify_median_kernel_px}")
         _require(self.ensemble_fusion in ENSEMBLE_FUSIONS,
                  f"perception.ensemble_fusion must be one of {', '.join(ENSEMBLE_FUSIONS)}, got {self.ensemble_fusion!r}")
@@ -373,7 +377,7 @@ class PerceptionConfig:
 class PolicyConfig:
     """Braking policy and its parameters (see avsim/control/policies.py)."""
 
-    name: str = "baseline"
+    name: str = "baseline"  # the braking policy (control/policies.py and its neighbours)
     conf_threshold: float = ranged(0.5, 0, 1, lo_open=True, hi_open=True)  # a detection counts above this confidence
     # The braking gate: a perceiving policy acts on a stop sign only once its pinhole estimate of
     # the distance to the stop line is at most this [m]; 40 m is the study stack's gate. None (in
@@ -381,7 +385,7 @@ class PolicyConfig:
     trigger_dist_m: float | None = ranged(40.0, 0, 1000, lo_open=True, unit="m", note="or none for no gate")
     baseline_brake: float = ranged(0.85, 0, 1, lo_open=True)  # constant brake level of the `baseline` rule
     brake_multiplier: float = ranged(1.0, 0.6, 1.0)  # M in b = min(a / a_max * M, 1)
-    a_max_mps2: float = ranged(9.81, 1, 20, unit="m/s^2")
+    a_max_mps2: float = ranged(9.81, 1, 20, unit="m/s^2")  # a_max in `adjusted`'s b = min(a / a_max * M, 1)
     sign_height_m: float = ranged(0.762, 0.1, 3, unit="m")  # H_real of the stop sign, flat to flat
     # The sign height the study's stack assumes in its pinhole estimate (`study_stack` only).
     study_sign_height_m: float = ranged(1.0, 0.1, 3, unit="m")
@@ -473,11 +477,11 @@ def _coerce(value: Any, annotation: Any, dotted: str) -> Any:
         if (typing.get_origin(kind) is tuple and isinstance(value, (list, tuple)) and len(value) == len(item_kinds)
                 and all(type(v) is k for v, k in zip(value, item_kinds))):
             return tuple(value)
-    names = " or ".join(_type_name(k) for k in expected)
+    names = " or ".join(type_name(k) for k in expected)
     raise ConfigError(f"config key '{dotted}' must be {names}, got {value!r}")
 
 
-def _type_name(kind: Any) -> str:
+def type_name(kind: Any) -> str:
     """'float', or 'a list of 4 ints' for tuple[int, int, int, int]."""
     if typing.get_origin(kind) is tuple:
         items = typing.get_args(kind)

@@ -58,7 +58,7 @@ def save_snapshot(config: SimConfig, bumper_to_stop_line_m: float, out_prefix: s
 
 def save_town_strip(config: SimConfig, towns: list[str], bumper_to_stop_line_m: float, out_prefix: str) -> Path:
     """Save `{out_prefix}.png`: the front camera of each town side by side, each at half size
-    (the README's picture of the towns)."""
+    (the README's picture of the towns, docs/towns_front.png)."""
     tiles = []
     for town in towns:
         front = camera_views(with_overrides(config, {"scenario": {"town": town}}), bumper_to_stop_line_m)["front"]

@@ -41,9 +41,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         config = config_from_args(args)
+    from avsim.config_owners import check_read, set_keys
     from avsim.experiments.spec import check_run_names
 
     check_run_names(config)  # every name and the sign texture, before the scene is built
+    check_read(config, set_keys(flag_overrides(args)))  # a key set here that this run's policy or perception ignores
     if args.mcap:
         from avsim.recording.ros_types import require_rosbags
 

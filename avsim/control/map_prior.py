@@ -14,7 +14,7 @@ from __future__ import annotations
 from avsim.config import PolicyConfig
 from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy import GATE_KEYS, POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.world.hd_map import MapHandle
 
 
@@ -36,6 +36,7 @@ class MapPriorPolicy(BrakingPolicy):
     """
 
     uses_map = True
+    config_keys = (*GATE_KEYS, "stop_margin_m", "autopilot_stop_margin_m", "autopilot_decel_fraction")
 
     def __init__(self, config: PolicyConfig, context: PolicyContext, map_handle: MapHandle) -> None:
         super().__init__(config, context)

@@ -15,8 +15,8 @@ from avsim.config import PolicyConfig
 from avsim.control import autopilot, map_prior, study_stack, temporal_vote  # noqa: F401  (their registry entries)
 from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import (POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel, Observation,
-                                  PolicyContext)
+from avsim.control.policy import (GATE_KEYS, POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel,
+                                  Observation, PolicyContext)
 
 __all__ = ["POLICIES", "STOP_CLASS", "BrakeDecision", "BrakingPolicy", "CameraModel", "Observation", "PolicyContext"]
 
@@ -25,6 +25,8 @@ __all__ = ["POLICIES", "STOP_CLASS", "BrakeDecision", "BrakingPolicy", "CameraMo
 class BaselinePolicy(BrakingPolicy):
     """The study's rule: once the front camera sees a stop sign through the braking gate, apply a
     constant brake level (`baseline_brake`) until the car stops."""
+
+    config_keys = (*GATE_KEYS, "baseline_brake")
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         super().__init__(config, context)
@@ -52,6 +54,8 @@ class AdjustedBrakingPolicy(BrakingPolicy):
       believing them would release the brake at the worst moment.
     (`avsim.control.estimate.DeadReckonedEstimate` keeps it.)
     """
+
+    config_keys = (*GATE_KEYS, "stop_margin_m", "a_max_mps2", "brake_multiplier")
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         super().__init__(config, context)

@@ -28,6 +28,9 @@ from avsim.perception.base import Detection
 from avsim.registry import Registry
 
 STOP_CLASS = "stop_sign"
+# The policy keys of the braking gate (`BrakingPolicy.gated_stop_sign`): a policy that acts through
+# it reads these four.
+GATE_KEYS = ("conf_threshold", "trigger_dist_m", "sign_height_m", "stop_line_before_sign_m")
 
 
 @dataclass(frozen=True)
@@ -95,10 +98,14 @@ class PolicyContext:
 
 class BrakingPolicy(ABC):
     """Base class. `cameras` lists the cameras whose perception the policy needs; `uses_map`
-    says whether it is built with the map handle (only reference policies are)."""
+    says whether it is built with the map handle (only reference policies are); `config_keys`
+    lists the `policy.*` keys it reads besides `name`: a key it does not list is refused when a
+    user sets it for this policy (`avsim.config_owners`), and a test checks the list against the
+    keys a policy really reads."""
 
     cameras: tuple[str, ...] = ("front",)
     uses_map: bool = False
+    config_keys: tuple[str, ...] = ()
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         self.config = config

@@ -46,6 +46,7 @@ class StudyStackPolicy(BrakingPolicy):
     """
 
     cameras = ("front", "side")
+    config_keys = ("conf_threshold", "trigger_dist_m", "study_sign_height_m")
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         super().__init__(config, context)

@@ -53,6 +53,9 @@ class TemporalVotePolicy(BrakingPolicy):
     car's own speed times the control period, summed, as `adjusted` dead-reckons.
     """
 
+    config_keys = ("trigger_dist_m", "sign_height_m", "stop_line_before_sign_m", "baseline_brake", "vote_conf_threshold",
+                   "vote_k", "vote_n", "vote_range_rate_tol", "vote_min_travel_m")
+
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         super().__init__(config, context)
         self._odometer_m = 0.0

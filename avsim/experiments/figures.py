@@ -20,7 +20,7 @@ from avsim.experiments import study
 from avsim.experiments.report_cells import Cells, origin_before_sign_m
 from avsim.experiments.spec import Experiment
 
-_STOP_LINE_BEFORE_SIGN_M = 1.0  # the towns' road convention (README: the sign stands 1 m past the line)
+_STOP_LINE_BEFORE_SIGN_M = 1.0  # the towns' road convention (docs/architecture.md: the sign stands 1 m past the line)
 _DIST_BIN_M = 2.0
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf")
 

@@ -54,6 +54,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
+from avsim.config_owners import check_read, check_read_by_some, set_keys
 from avsim.errors import ConfigError
 from avsim.experiments.plan_size import MAX_RUNS
 from avsim.experiments.run_task import RunSpec
@@ -206,6 +207,7 @@ def load_leaderboard(path: str | Path = DEFAULT_FILE) -> Leaderboard:
     _unique(path, "availability", [a.name for a in availability])
     board = Leaderboard(path, title, base, vary, conditions, defences, places, availability)
     _check_runs(board)
+    _check_keys_read(board, defaults)
     return board
 
 
@@ -304,6 +306,19 @@ def _unique(path: Path, key: str, names: list[str]) -> None:
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
         raise ConfigError(f"{path}: [[{key}]] names '{repeated[0]}' twice; each needs its own")
+
+
+def _check_keys_read(board: Leaderboard, defaults: Mapping[str, Any]) -> None:
+    """A defence's policy and perception keys are read by its runs; those of [defaults] and [vary]
+    by some run of the board (`avsim.config_owners`)."""
+    runs = [run for run in board.runs() if not run.seed]
+    with located(board.path, "[defaults] and [vary]"):
+        check_read_by_some((run.config for run in runs), set_keys(defaults) | {key for key, _, _ in board.vary})
+    for defence in board.defences:
+        with located(board.path, f'defence "{defence.name}"'):
+            for run in runs:
+                if run.defence == defence.name:
+                    check_read(run.config, set_keys(defence.overrides))
 
 
 def _check_runs(board: Leaderboard) -> None:

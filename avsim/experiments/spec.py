@@ -16,7 +16,9 @@ Everything a run needs is checked when the file is loaded, so a typo fails befor
 long batch starts: unknown keys, wrong types and out-of-range values (by the config
 dataclasses) and registry names (town, placement, policy, perception). Sign textures
 are the exception: the scene resolves them when it is built, so a file may name a
-texture that an attack run has not written yet.
+texture that an attack run has not written yet. A policy or perception key that a cell sets
+must be read by the cell's policy or perception, and a key of `[defaults]` or `[vary]` by at
+least one cell (`avsim.config_owners`).
 
 What differs between the runs of one cell: `scenario.seed`, which seeds the start
 jitter (up to `scenario.start_jitter_m` along the road) and the camera's sensor noise
@@ -42,6 +44,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from avsim.config import NO_SIGN, SimConfig, with_overrides
+from avsim.config_owners import check_read, check_read_by_some, set_keys
 from avsim.errors import AvsimError, ConfigError
 from avsim.experiments.plan_size import MAX_RUNS
 
@@ -178,6 +181,10 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
         vary = parse_vary(raw.get("vary", {}))
     report, compare_with = _parse_report(path, raw)
     cells = _parse_cells(path, raw.get("cells"), defaults, vary)
+    # [defaults] and [vary] apply to every cell: a key there needs one cell that reads it.
+    for where, keys in (("[defaults]", set_keys(defaults)), ("[vary]", {key for key, _, _ in vary})):
+        with located(path, where):
+            check_read_by_some((cell.config for cell in cells), keys, runs="cell")
     return Experiment(path=path, title=title, seeds=seeds, cells=cells, vary=vary, report=report, compare_with=compare_with)
 
 
@@ -215,6 +222,7 @@ def _parse_cells(path: Path, raw_cells: Any, defaults: dict[str, Any],
             reject_seed(overrides)
             config = with_overrides(SimConfig(), deep_merge(defaults, overrides))
             check_registry_names(config)
+            check_read(config, set_keys(overrides))  # a key the cell sets, its policy and perception read
         # Both ends of every [vary] range must be valid for this cell, so every draw is.
         with located(path, f"[vary], applied to {where}"):
             for key, low, high in vary:

@@ -18,7 +18,9 @@ and config keys, empty lists, repeated values, wrong types and out-of-range valu
 config dataclasses), registry names (town, placement, policy, perception), sign textures
 (each decoded as the scene decodes it; two names of one file, such as "clean" and
 "stop_sign", are refused), and then every combination's full config (for limits that tie
-two keys together).
+two keys together). A policy or perception key of `[defaults]` or of a grid axis that no run
+reads is refused, and so is a grid whose points differ only in keys their runs do not read
+(`policy.vote_k` beside a `baseline` run): it would run one run twice (`avsim.config_owners`).
 Each error is one `ConfigError` line naming the file, the place in it and the key.
 
 `run_sweep` runs the specs through `avsim.experiments.batch.run_batch`, on its local pool of
@@ -55,6 +57,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
+from avsim.config_owners import check_read_by_some, identical_runs, set_keys
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
@@ -171,10 +174,27 @@ def load_sweep(path: str | os.PathLike, *, yes: bool = False) -> Sweep:
     sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid)
     check_plan_size(sweep.size, f"{path}: {sweep.size // seeds:,} grid points x {seeds:,} seeds", yes=yes)
     # Each value is valid alone; check every combination too (limits that tie two keys together).
+    configs = []
     for point in sweep.iter_points():
         with located(path, f"[grid] point {point_label(point)}"):
-            sweep.config_at(point, 0)
+            configs.append((point_label(point), sweep.config_at(point, 0)))
+    _check_keys_read(path, defaults, sweep.grid, configs)
     return sweep
+
+
+def _check_keys_read(path: Path, defaults: Mapping[str, Any], grid: tuple[tuple[str, tuple[Scalar, ...]], ...],
+                     configs: list[tuple[str, SimConfig]]) -> None:
+    """Every policy and perception key of [defaults] and every grid axis is read by some run of the
+    grid, and no two grid points make the same run (`avsim.config_owners`)."""
+    for where, keys in (("[defaults]", set_keys(defaults)), ("[grid]", {key for key, _ in grid})):
+        with located(path, where):
+            check_read_by_some((config for _, config in configs), keys, runs="run of the grid")
+    same = identical_runs(configs)
+    if same is not None:
+        first, second, differ = same
+        raise ConfigError(f"{path}: [grid] points {first} and {second} are the same run: {', '.join(differ)} "
+                          f"{'is' if len(differ) == 1 else 'are'} not read by its policy and perception, so the sweep would run "
+                          "it twice under two labels; give the policy or perception that reads it a sweep file of its own")
 
 
 def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...]], ...]:

@@ -48,6 +48,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avsim.config import MAX_SEED, SimConfig, check_seed, with_overrides
+from avsim.config_owners import check_read, set_keys
 from avsim.control.policy import BrakeDecision
 from avsim.errors import ConfigError
 from avsim.gym.observation import detections_array, observation_space
@@ -95,6 +96,9 @@ def env_config(*, town: str | None = None, placement: str | None = None, sign: s
                                         "perception": {**overrides.get("perception", {}), "kind": perception or "none"}})
     if "start_speed_kmh" not in scenario:
         base = with_overrides(base, {"scenario": {"start_speed_kmh": base.scenario.speed_kmh}})
+    # A perception key the chosen perception does not read is refused, as with --set (the agent
+    # takes the policy's place, so the policy keys are not checked).
+    check_read(base, set_keys({"perception": overrides.get("perception", {})}))
     return base
 
 

@@ -60,7 +60,7 @@ class DataGenConfig:
     seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
     workers: int = ranged(2, 1, 64)
     # Farthest target sign [m]. 80 m covers the braking range; the perception-range
-    # measurement (README) renders out to 160 m, where the sign is 4 px tall.
+    # measurement (docs/perception.md) renders out to 160 m, where the sign is 4 px tall.
     max_dist_m: float = ranged(80.0, 10, 300, unit="m", note="the approach road is 320 m long")
     # How the labels are written: "jsonl" (avsim's own), "coco" or "yolo" (dataset_formats).
     label_format: str = "jsonl"

@@ -139,6 +139,43 @@ def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: Sc
                            {"front": config.front_roi_px, "side": config.side_roi_px})
 
 
+# The `perception.*` keys each kind reads besides `kind` (`avsim.config_owners` refuses a key set
+# for a perception that does not read it; a test checks these against the keys really read).
+# Every pixel perception reads FRAME_KEYS (FramePerception, the purifier) and its network's keys;
+# an ensemble reads the keys of each network in `ensemble_members`.
+FRAME_KEYS = ("min_box_height_px", "threads", "sensor_noise_std", "front_roi_px", "side_roi_px", "purify")
+NETWORK_KEYS = {
+    "detector": ("min_confidence", "weights_path", "detector_precision"),
+    "coco": ("min_confidence", "coco_input", "coco_upscale", "coco_precision"),
+    "yolo": ("min_confidence", "yolo_cfg", "yolo_weights", "yolo_names", "yolo_input", "yolo_upscale", "yolo_precision"),
+    "onnx": ("min_confidence", "onnx_path", "onnx_classes"),
+    "ensemble": ("ensemble_fusion", "ensemble_members", "ensemble_k"),
+}
+PERCEPTION_KEYS = {"oracle": ("oracle_min_box_height_px",), "none": (),
+                   **{kind: FRAME_KEYS + keys for kind, keys in NETWORK_KEYS.items()}}
+# Keys read only under one value of another key: key -> (that key, the value).
+CONDITIONAL_KEYS = {
+    "coco_upscale": ("coco_input", "upscale"),
+    "yolo_upscale": ("yolo_input", "upscale"),
+    "purify_jpeg_quality": ("purify", "jpeg"),
+    "purify_median_kernel_px": ("purify", "median"),
+    "ensemble_k": ("ensemble_fusion", "k_of_n"),
+}
+
+
+def perception_keys(config: PerceptionConfig) -> frozenset[str]:
+    """The `perception.*` keys (without the section) that the perception of `config` reads."""
+    keys = set(PERCEPTION_KEYS.get(config.kind, ()))
+    if config.kind == "ensemble":
+        keys.update(key for member in config.ensemble_members for key in NETWORK_KEYS[member])
+    for key, (switch, value) in CONDITIONAL_KEYS.items():
+        if switch in keys and getattr(config, switch) == value:
+            keys.add(key)
+        else:
+            keys.discard(key)
+    return frozenset(keys)
+
+
 PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
 PERCEPTIONS.add("yolo", _frame_perception)

@@ -2,10 +2,10 @@
 
 Every figure in avsim that means "the car's full-brake deceleration" comes from here, at
 the road friction of the run it describes (the autopilot's brake calibration, the report's
-findings, the README), never from a constant. The test track is a bare road plane with the
+findings, docs/vehicle.md), never from a constant. The test track is a bare road plane with the
 car on it, so a measurement takes a fraction of a second; results are cached per process.
 
-    python -m avsim.vehicle.brake_test          # the table the README quotes
+    python -m avsim.vehicle.brake_test          # the table docs/vehicle.md quotes
 
 The stop is timed and measured at the physics rate: from the first physics step with the
 brake requested to the first at which the car's speed is below STOPPED_SPEED_MPS.

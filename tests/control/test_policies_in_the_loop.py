@@ -61,7 +61,7 @@ def test_side_camera_pinhole_geometry_is_within_5_percent_of_the_truth_at_10_to_
 @pytest.mark.slow
 def test_side_camera_pinhole_estimate_from_the_detector_is_within_5_percent_at_10_to_30_m():
     # The detector's boxes add their own error: measured 2 % typical, up to 9 % at 11 m in the
-    # frames where the braking car is closest (README).
+    # frames where the braking car is closest (docs/architecture.md).
     errors = np.abs(_side_estimate_errors("detector"))
     assert len(errors) >= 10
     assert np.median(errors) <= 0.025

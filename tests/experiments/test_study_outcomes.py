@@ -34,7 +34,7 @@ pytestmark = pytest.mark.slow
 # Seed 0's outcome per cell, as measured: True = stopped before the sign. With the study's 40 m
 # braking gate the margin is thin (a full stop from 85 km/h takes 34 m), so a yang-attacked sign
 # that is confirmed a few metres late inside the gate is enough to run past it; other seeds of the
-# same cells stop (README, "Reproducing the study").
+# same cells stop (docs/reproducing.md).
 SEED0_STOPS = {
     ("table3_stop_positions.toml", "clean sign, baseline"): True,
     ("table3_stop_positions.toml", "attacked sign, baseline"): False,

@@ -193,6 +193,8 @@ def test_render_returns_the_front_camera_image():
     ({"config_overrides": {"loop": {"max_time_s": -1}}}, "loop.max_time_s must be in"),
     ({"config_overrides": {"scenario": {"seed": 3}}}, "reset(seed=...)"),
     ({"config_overrides": {"perception": {"kind": "oracle"}}}, "give perception=... instead"),
+    ({"perception": "oracle", "config_overrides": {"perception": {"sensor_noise_std": 2.0}}},
+     "perception.sensor_noise_std is read only by perceptions coco, detector"),
     ({"town": "town07", "config_overrides": {"scenario": {"town": "town03"}}}, "town= and config_overrides"),
     ({"town": "town99"}, "unknown town 'town99'"),
     ({"sign": "nosuchsign"}, "unknown sign texture 'nosuchsign'"),

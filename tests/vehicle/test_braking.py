@@ -42,7 +42,7 @@ def test_abs_efficiency_on_dry_road_is_that_of_a_car(dry_stop):
 @pytest.mark.parametrize("road_mu", [WET, SNOW])
 def test_full_brake_deceleration_is_mu_g_eta_on_wet_and_snow(dry_stop, road_mu):
     stop = brake_test(VehicleConfig(), road_mu, V0_MPS)
-    eta = dry_stop.efficiency  # measured on the dry road, stated in the README
+    eta = dry_stop.efficiency  # measured on the dry road, stated in docs/vehicle.md
     assert stop.mean_decel_mps2 == pytest.approx(road_mu * GRAVITY_MPS2 * eta, rel=0.15)
     assert stop.max_brake_slip <= 0.2
 

@@ -98,7 +98,7 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     """The checkpoint dict, checked to be ours; raises WeightsError if missing or unreadable."""
     path = Path(path)
     if not path.is_file():
-        raise WeightsError(f"detector weights {path} are missing; train them with {TRAIN_HINT} (see README)")
+        raise WeightsError(f"detector weights {path} are missing; train them with {TRAIN_HINT} (see docs/perception.md)")
     try:
         checkpoint = torch.load(path, weights_only=True, map_location="cpu")
     except Exception as exc:  # torch.load fails in many ways on garbage (pickle, zip, EOF, key errors)

@@ -16,7 +16,7 @@ from avsim.perception.coco.runner import CocoRunner
 from avsim.perception.factory import build_frame_detector
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
-# The largest deviations of bf16 from fp32 measured on 3000 make-data frames (README, "COCO CenterNet";
+# The largest deviations of bf16 from fp32 measured on 3000 make-data frames (docs/perception.md, "COCO CenterNet";
 # `python -m avsim.perception.coco.realism --modes upscale --precisions fp32,bf16`), between each fp32
 # stop-sign detection and its bf16 twin: on the labelled sign, score 0.057 and box edge 0.38 px; on
 # every other stop-sign detection (trees, mostly), score 0.144.

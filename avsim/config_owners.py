@@ -1,0 +1,186 @@
+"""Every `policy.*` and `perception.*` config key has an owner: the policies and perceptions that read it.
+
+`PolicyConfig` holds the keys of every braking policy and `PerceptionConfig` those of every
+perception, so a key can be set where it has no effect (`policy.vote_k` under `baseline`). Each
+registered policy declares the policy keys it reads (`BrakingPolicy.config_keys`) and each
+perception kind its perception keys (`avsim.perception.factory.perception_keys`, some read only
+under one value of another key: `coco_upscale` only with `coco_input = upscale`). A key that a
+user *sets* and that no part of the run reads is refused before any work, in one line naming
+the key and who does read it (a `ConfigError`, exit 2).
+
+"Sets" means written by the user; a default is never refused. Where a key is written decides
+which runs must read it:
+- `avsim run`: a `--set` key (or a flag such as `--policy`) must be read by the run;
+- an experiment file (`avsim.experiments.spec`): a key in a cell must be read by that cell; a
+  key in `[defaults]` or `[vary]` applies to every cell and is refused only when no cell reads
+  it (a `[defaults]` vote_k is for the cells of `temporal_vote`, and harmless to the others);
+- a sweep file (`avsim.experiments.sweep`): a key in `[defaults]` or a grid axis is refused when
+  no run of the grid reads it; and grid points that differ only in keys their runs do not read
+  would be the same run twice, which is refused too (`identical_runs`), as the sweep already
+  refuses two names of one texture: give such a policy its own sweep file;
+- a leaderboard file: a defence's keys must be read by its runs; `[defaults]` keys by some run.
+
+`scenario`, `vehicle`, `camera` and `loop` keys are read by every run and not checked here.
+`docs/config.md` (`python -m avsim.config_reference`) lists every key with its readers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from avsim.config import ENSEMBLE_NETWORKS, PerceptionConfig, PolicyConfig, SimConfig
+from avsim.control.policies import POLICIES
+from avsim.errors import ConfigError
+from avsim.perception.factory import CONDITIONAL_KEYS, NETWORK_KEYS, PERCEPTION_KEYS, PERCEPTIONS, perception_keys
+
+OWNED_SECTIONS = ("policy", "perception")
+# Keys every run reads, whatever its policy and perception, and why: the two that choose them, and
+# the threshold by which the result record counts a confident stop-sign detection
+# (`first_detection_dist_m`, the trace's `top_stop_conf`, the video's boxes; `avsim.loop`).
+EVERY_RUN_READS = {
+    "policy.name": "it names the braking policy",
+    "perception.kind": "it names the perception",
+    "policy.conf_threshold": "the result record's confident detection: first_detection_dist_m, the trace, the video",
+}
+
+
+def policy_reads(name: str) -> frozenset[str]:
+    """The dotted `policy.*` keys the policy registered as `name` reads (with the every-run ones)."""
+    return frozenset(f"policy.{key}" for key in POLICIES.get(name).config_keys) | _every_run("policy")
+
+
+def perception_reads(perception: PerceptionConfig) -> frozenset[str]:
+    """The dotted `perception.*` keys the perception of `perception` reads (with the every-run ones)."""
+    PERCEPTIONS.get(perception.kind)  # an unknown kind is refused as such
+    return frozenset(f"perception.{key}" for key in perception_keys(perception)) | _every_run("perception")
+
+
+def keys_read(config: SimConfig) -> frozenset[str]:
+    """Every dotted `policy.*` and `perception.*` key that the run of `config` reads."""
+    return policy_reads(config.policy.name) | perception_reads(config.perception)
+
+
+def _every_run(section: str) -> frozenset[str]:
+    return frozenset(key for key in EVERY_RUN_READS if key.startswith(f"{section}."))
+
+
+def set_keys(overrides: Mapping[str, Any]) -> frozenset[str]:
+    """The dotted `policy.*` and `perception.*` keys that a nested override mapping sets."""
+    keys = set()
+    for section in OWNED_SECTIONS:
+        table = overrides.get(section)
+        if isinstance(table, Mapping):
+            keys.update(f"{section}.{key}" for key in table)
+    return frozenset(keys)
+
+
+def readers(dotted: str) -> str:
+    """Who reads `dotted`, in words: "policy temporal_vote", "perception coco or an ensemble with
+    coco, with perception.coco_input = upscale", "every run (it names the braking policy)"."""
+    section, key = dotted.split(".", 1)
+    if section == "policy":
+        names = [name for name in POLICIES.names() if key in POLICIES.get(name).config_keys]
+        policies = f"polic{'ies' if len(names) > 1 else 'y'} {', '.join(names)}" if names else "no policy"
+        if dotted in EVERY_RUN_READS:
+            return f"every run ({EVERY_RUN_READS[dotted]})" + (f"; and {policies} brake by it" if names else "")
+        return policies
+    if dotted in EVERY_RUN_READS:
+        return f"every run ({EVERY_RUN_READS[dotted]})"
+    kinds = [kind for kind, keys in PERCEPTION_KEYS.items() if key in keys or _conditional_on(key, keys)]
+    members = [kind for kind in ENSEMBLE_NETWORKS if key in NETWORK_KEYS[kind] or _conditional_on(key, NETWORK_KEYS[kind])]
+    text = f"perception{'s' if len(kinds) > 1 else ''} {', '.join(sorted(kinds))}" if kinds else "no perception"
+    if members and "ensemble" not in kinds:
+        text += f", or an ensemble with {' or '.join(members)} in perception.ensemble_members"
+    if key in CONDITIONAL_KEYS:
+        switch, value = CONDITIONAL_KEYS[key]
+        text += f", with perception.{switch} = {value}"
+    return text
+
+
+def _conditional_on(key: str, keys: Iterable[str]) -> bool:
+    """Whether `key` is read under one value of a key in `keys` (purify_jpeg_quality under purify)."""
+    return key in CONDITIONAL_KEYS and CONDITIONAL_KEYS[key][0] in keys
+
+
+def _this_run(config: SimConfig, dotted: str) -> str:
+    """What the run has that keeps it from reading `dotted`, e.g. "policy is baseline"."""
+    section, key = dotted.split(".", 1)
+    if section == "policy":
+        return f"policy is {config.policy.name}"
+    text = f"perception is {config.perception.kind}"
+    if key in CONDITIONAL_KEYS:
+        switch = CONDITIONAL_KEYS[key][0]
+        text += f" with perception.{switch} = {getattr(config.perception, switch)}"
+    return text
+
+
+def _owned(dotted: str) -> bool:
+    return dotted.split(".", 1)[0] in OWNED_SECTIONS
+
+
+def check_read(config: SimConfig, keys: Iterable[str]) -> None:
+    """Refuse the first of `keys` (dotted) that the run of `config` does not read, in one line."""
+    read = keys_read(config)
+    unread = sorted(key for key in keys if _owned(key) and key not in read)
+    if unread:
+        key = unread[0]
+        raise ConfigError(f"{key} is read only by {readers(key)}, and this run's {_this_run(config, key)}, so it "
+                          f"would be ignored; remove it, or {_fix(config, key)}")
+
+
+def _fix(config: SimConfig, dotted: str) -> str:
+    """How to make the run read `dotted`: set the key it depends on, or choose another owner."""
+    section, key = dotted.split(".", 1)
+    if key in CONDITIONAL_KEYS and section == "perception":
+        switch, value = CONDITIONAL_KEYS[key]
+        if f"perception.{switch}" in keys_read(config):
+            return f"set perception.{switch} = {value}"
+    return f"choose a {section} that reads it"
+
+
+def check_read_by_some(configs: Iterable[SimConfig], keys: Iterable[str], runs: str = "run") -> None:
+    """Refuse the first of `keys` (dotted) that none of `configs` reads; runs: what a config is, in
+    the message ("cell", "run of the grid")."""
+    pending = {key for key in keys if _owned(key)}
+    for config in configs:
+        pending -= keys_read(config)
+        if not pending:
+            return
+    if pending:
+        key = sorted(pending)[0]
+        raise ConfigError(f"{key} is read only by {readers(key)}, and no {runs} here has one, so it would be "
+                          f"ignored; remove it, or choose a {key.split('.')[0]} that reads it")
+
+
+def as_run(config: SimConfig) -> SimConfig:
+    """`config` with every `policy.*` and `perception.*` key its run does not read back at its
+    default: two configs with the same `as_run` make the same run."""
+    read = keys_read(config)
+    policy = _defaults_for_unread(config.policy, PolicyConfig(), "policy", read)
+    perception = _defaults_for_unread(config.perception, PerceptionConfig(), "perception", read)
+    return dataclasses.replace(config, policy=policy, perception=perception)
+
+
+def _defaults_for_unread(section: Any, default: Any, name: str, read: frozenset[str]) -> Any:
+    unread = {f.name: getattr(default, f.name) for f in dataclasses.fields(section) if f"{name}.{f.name}" not in read}
+    # Replacing one key at a time could pass through a combination __post_init__ refuses
+    # (vote_k > vote_n); the defaults of every unread key together are valid with the read ones.
+    return dataclasses.replace(section, **unread)
+
+
+def identical_runs(labelled: Iterable[tuple[str, SimConfig]]) -> tuple[str, str, list[str]] | None:
+    """The first two labels whose configs make the same run, with the keys in which they differ
+    (read by neither); None when every config makes its own run."""
+    seen: dict[SimConfig, tuple[str, SimConfig]] = {}
+    for label, config in labelled:
+        run = as_run(config)
+        if run in seen:
+            first_label, first = seen[run]
+            differ = [f"{section}.{f.name}" for section in OWNED_SECTIONS
+                      for f in dataclasses.fields(getattr(config, section))
+                      if getattr(getattr(config, section), f.name) != getattr(getattr(first, section), f.name)]
+            return first_label, label, differ
+        seen[run] = (label, config)
+    return None
