@@ -14,6 +14,7 @@ from avsim.cli.overrides import parse_set
 from avsim.cli.recording_modes import add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
+from avsim.experiments.output_lock import locked_output
 from avsim.outputs import FILE, FOLDER, add_output_argument
 from avsim.validation import config_flag, number_flag, number_list_flag
 
@@ -88,14 +89,15 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     threshold = SimConfig().policy.conf_threshold
     out = Path(args.out)
     reports, drive_bys = [], {}
-    for sign in signs:
-        print(f"measuring {sign} ...", flush=True)
-        reports.append(evaluate_texture(sign, args.town, placements, threshold, detector=detectors[0]))
-        for detector in detectors if args.drives else ():
-            drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives)
-    fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, detector=detectors[0])
-    figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
-    path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure)
+    with locked_output(out, f"avsim attack eval --out {out}"):  # one writer at a time; a failed start leaves no folder
+        for sign in signs:
+            print(f"measuring {sign} ...", flush=True)
+            reports.append(evaluate_texture(sign, args.town, placements, threshold, detector=detectors[0]))
+            for detector in detectors if args.drives else ():
+                drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives)
+        fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, detector=detectors[0])
+        figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
+        path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure)
     print(path.read_text())
     print(f"wrote {path}")
     return 0
@@ -112,8 +114,10 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
         from avsim.experiments.attacks.budget_success import load_protocol
 
         protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
-    csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
-                                       protocol=protocol, workers=args.workers, rrd=args.rrd_mode, mcap=args.mcap_mode)
+    with locked_output(args.out, f"avsim attack sweep --out {args.out}"):  # one writer at a time
+        csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
+                                           protocol=protocol, workers=args.workers, rrd=args.rrd_mode,
+                                           mcap=args.mcap_mode)
     print(f"wrote {csv_path} and {plot_path}")
     return 0
 

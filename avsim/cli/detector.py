@@ -8,6 +8,7 @@ import os
 
 from avsim.cli.flags import INT_FLAG, SEED_FLAG
 from avsim.errors import ConfigError
+from avsim.experiments.output_lock import locked_output, locked_sibling
 from avsim.outputs import FILE, FOLDER, add_output_argument, check_output_file
 from avsim.validation import number_flag
 
@@ -17,7 +18,8 @@ def _cmd_make_data(args: argparse.Namespace) -> int:
 
     config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
                            seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format)
-    out = make_dataset(args.out, config, overwrite=args.overwrite)
+    with locked_sibling(args.out, f"avsim detector make-data --out {args.out}"):  # one writer at a time
+        out = make_dataset(args.out, config, overwrite=args.overwrite)
     print(f"wrote {config.n_train} training and {config.n_val} validation images to {out} ({config.label_format} labels)")
     return 0
 
@@ -53,9 +55,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     weights = resolve_weights_path(args.weights)
     # Score every box down to a low confidence: AP needs the whole ranking.
     runner = SignDetectorRunner(weights, conf_threshold=0.01)
-    report = evaluate(runner.detect, args.data, conf_threshold=args.conf, split=args.split, limit=args.limit,
-                      progress=not args.no_progress)
-    report_path, plot_path = write_report(report, args.out, f"Sign detector {weights.name} on {args.data} ({args.split})")
+    with locked_output(args.out, f"avsim detector eval --out {args.out}"):  # one writer at a time
+        report = evaluate(runner.detect, args.data, conf_threshold=args.conf, split=args.split, limit=args.limit,
+                          progress=not args.no_progress)
+        report_path, plot_path = write_report(report, args.out,
+                                              f"Sign detector {weights.name} on {args.data} ({args.split})")
     print(report_path.read_text())
     print(f"wrote {report_path} and {plot_path}")
     return 0

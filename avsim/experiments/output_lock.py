@@ -16,6 +16,10 @@ holds the holder's pid, host and command, for the refusal's message only.
 A folder this command made is removed again when the command fails before any run was
 recorded in `results_name` (a Ray cluster that cannot be reached, a bad resume), so a failed
 start leaves no empty results folder behind.
+
+A command that builds its output elsewhere and renames it into place (`avsim detector
+make-data`) holds `locked_sibling(out, ...)` instead: the lock file `.<name>.avsim.lock` sits
+beside `out`, which may not exist yet and is replaced whole.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ def locked_output(folder: str | os.PathLike, command: str, *, results_name: str 
     except OSError as exc:
         raise OutputError(f"cannot make the results folder {folder} ({exc.strerror or exc})") from None
     try:
-        fd = _acquire(folder / LOCK_NAME, command)
+        fd = _acquire(folder / LOCK_NAME, command, folder)
     except BaseException:
         if created:  # only if still empty: a second command racing to make it may hold it now
             with contextlib.suppress(OSError):
@@ -63,8 +67,27 @@ def locked_output(folder: str | os.PathLike, command: str, *, results_name: str 
         _release(folder / LOCK_NAME, fd)
 
 
-def _acquire(path: Path, command: str) -> int:
-    """An open, flock-ed descriptor of `path`, which then names this process."""
+@contextlib.contextmanager
+def locked_sibling(output: str | os.PathLike, command: str) -> Iterator[Path]:
+    """Hold `output` (a file or folder, made or replaced by the block) for the block's duration
+    through a lock file beside it; yields `output`. OutputError in one line when another live
+    process holds it."""
+    output = Path(output)
+    lock = output.with_name(f".{output.name}{LOCK_NAME}")
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot make the folder {output.parent} ({exc.strerror or exc})") from None
+    fd = _acquire(lock, command, output)
+    try:
+        yield output
+    finally:
+        _release(lock, fd)
+
+
+def _acquire(path: Path, command: str, held: Path) -> int:
+    """An open, flock-ed descriptor of the lock file `path`, which then names this process; held:
+    the output it guards, for the refusal's message."""
     while True:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
@@ -73,8 +96,8 @@ def _acquire(path: Path, command: str) -> int:
             holder = _read_holder(fd)
             os.close(fd)
             if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise OutputError(f"cannot lock {path.parent} ({exc.strerror or exc})") from None
-            raise OutputError(f"{path.parent} is in use by {holder or 'another avsim command'}; wait for it to finish, "
+                raise OutputError(f"cannot lock {held} ({exc.strerror or exc})") from None
+            raise OutputError(f"{held} is in use by {holder or 'another avsim command'}; wait for it to finish, "
                               f"or choose another --out") from None
         # The previous holder may have unlinked the file between our open and our lock: then we
         # hold a lock on a file no one else can see, and must take the one at `path`.

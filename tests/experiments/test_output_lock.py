@@ -14,7 +14,7 @@ import pytest
 
 from avsim import cli
 from avsim.errors import OutputError
-from avsim.experiments.output_lock import LOCK_NAME, locked_output
+from avsim.experiments.output_lock import LOCK_NAME, locked_output, locked_sibling
 from avsim.experiments.results_file import read_records
 
 REPO = Path(__file__).resolve().parents[2]
@@ -30,6 +30,39 @@ def test_a_second_holder_is_refused_naming_the_first(tmp_path):
     assert "\n" not in message and f"pid {os.getpid()}" in message and "first.toml" in message
     with locked_output(tmp_path / "out", "avsim sweep third.toml"):  # released: free again
         pass
+
+
+def test_a_sibling_lock_refuses_a_second_writer_of_a_file_or_folder_made_later(tmp_path):
+    target = tmp_path / "sub" / "data"  # neither exists yet: make-data renames its folder into place
+    with locked_sibling(target, "avsim detector make-data --out first"):
+        with pytest.raises(OutputError) as refused:
+            with locked_sibling(target, "second"):
+                pass
+    message = str(refused.value)
+    assert "\n" not in message and str(target) in message and "make-data --out first" in message
+    assert list((tmp_path / "sub").iterdir()) == []  # the lock file goes with its holder
+    with locked_sibling(target, "third"):
+        pass
+
+
+# Every command that writes a report folder (or makes a dataset) is refused, before its work, while
+# another command holds its --out: (argv without --out, how the output is held).
+HELD_OUTPUT_COMMANDS = [
+    (["attack", "eval", "--signs", "clean", "--drives", "0"], locked_output),
+    (["attack", "sweep", "--method", "chen", "--budgets", "0.1", "--steps", "1"], locked_output),
+    (["detector", "eval", "--data", "{tmp}/no_data"], locked_output),
+    (["detector", "make-data", "--train", "1", "--val", "1"], locked_sibling),
+]
+
+
+@pytest.mark.parametrize("argv, hold", HELD_OUTPUT_COMMANDS, ids=lambda v: " ".join(v[:2]) if isinstance(v, list) else "")
+def test_a_command_whose_output_another_holds_is_one_line_exit_2(tmp_path, capsys, argv, hold):
+    out = tmp_path / "out"
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    with hold(out, "avsim first --out OUT"):
+        assert cli.main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "in use by pid" in err and "first --out OUT" in err, err
 
 
 def _hold_and_wait(folder: str, ready) -> None:
