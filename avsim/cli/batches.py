@@ -41,7 +41,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     from avsim.experiments.leaderboard import DEFAULT_FILE, load_leaderboard
     from avsim.experiments.leaderboard_run import run_leaderboard
 
-    board = load_leaderboard(args.file or DEFAULT_FILE)  # checks every run before anything runs or is written
+    # Checks the plan's size, then every run, before anything runs or is written.
+    board = load_leaderboard(args.file or DEFAULT_FILE, quick=args.quick, yes=args.yes)
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
                           progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch,
                           rrd=args.rrd_mode, mcap=args.mcap_mode)
@@ -99,6 +100,7 @@ def add_commands(sub) -> None:
     board.add_argument("--backend", choices=("local", "ray"), default="local",
                        help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
     board.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    board.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")

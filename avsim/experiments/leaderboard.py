@@ -56,7 +56,7 @@ from typing import Any
 from avsim.config import SimConfig, with_overrides
 from avsim.config_owners import check_read, check_read_by_some, set_keys
 from avsim.errors import ConfigError
-from avsim.experiments.plan_size import MAX_RUNS
+from avsim.experiments.plan_size import MAX_RUNS, check_plan_size
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
@@ -144,6 +144,15 @@ class Leaderboard:
     def condition(self, defence: Defence, name: str) -> Condition:
         return defence.adaptive if name == "adaptive" else self.conditions[name]
 
+    def size(self, quick: bool = False) -> int:
+        """How many runs `runs(quick)` holds, counted without building them."""
+        safety = sum(place.quick_seeds if quick else place.seeds for place in self.places) * len(CONDITIONS)
+        total = 0
+        for defence in self.defences:
+            total += safety + sum(scenario.quick_seeds if quick else scenario.seeds for scenario in self.availability
+                                  if scenario.defences is None or defence.name in scenario.defences)
+        return total
+
     def runs(self, quick: bool = False) -> list[LeaderboardRun]:
         """Every run of the matrix (with `quick`, each place's and scenario's quick_seeds), defence by defence."""
         runs = []
@@ -186,8 +195,11 @@ def place_overrides(place: Place) -> dict[str, Any]:
 
 # ---- loading ---------------------------------------------------------------------------------
 
-def load_leaderboard(path: str | Path = DEFAULT_FILE) -> Leaderboard:
-    """Read and check a leaderboard file, every run of it (module docstring)."""
+def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, yes: bool = False) -> Leaderboard:
+    """Read and check a leaderboard file, every run of it (module docstring).
+
+    quick, yes: the plan to be run (its quick seeds or all) may exceed `plan_size.RUNS_WITHOUT_YES`
+    runs only with `yes`; its size is checked before any run is built."""
     path = Path(path)
     raw, title, _ = read_run_file(path, "leaderboard", TOP_LEVEL_KEYS, 1)
     with located(path, "[defaults]"):
@@ -206,6 +218,7 @@ def load_leaderboard(path: str | Path = DEFAULT_FILE) -> Leaderboard:
                          for index, item in enumerate(raw.get("availability", [])))
     _unique(path, "availability", [a.name for a in availability])
     board = Leaderboard(path, title, base, vary, conditions, defences, places, availability)
+    check_plan_size(board.size(quick), f"{path}: {len(defences)} defences", yes=yes)
     _check_runs(board)
     _check_keys_read(board, defaults)
     return board

@@ -184,3 +184,14 @@ def test_the_quick_leaderboard_runs_every_defence(tmp_path, capsys):
         assert row.attacked[1] >= 1 and row.clean[1] == 1 and row.phantom[1] >= 1
     assert pareto_front(table.values())
     assert (out / "leaderboard.png").stat().st_size > 10_000
+
+
+def test_the_plan_size_is_counted_without_building_runs_and_a_huge_board_needs_yes(tmp_path, capsys):
+    tiny = load_leaderboard(write(tmp_path, TINY))
+    assert tiny.size() == len(tiny.runs()) == 15 and tiny.size(quick=True) == len(tiny.runs(quick=True)) == 8
+    huge = write(tmp_path, TINY.replace("seeds = 2\nquick_seeds = 1", "seeds = 9000\nquick_seeds = 1", 1))
+    assert load_leaderboard(huge, quick=True).size(quick=True) == 8  # the quick subset needs no --yes
+    assert main(["leaderboard", str(huge), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "54,003 runs" in err and "--yes" in err, err
+    assert not (tmp_path / "out").exists()
