@@ -18,7 +18,11 @@ which runs must read it:
   no run of the grid reads it; and grid points that differ only in keys their runs do not read
   would be the same run twice, which is refused too (`identical_runs`), as the sweep already
   refuses two names of one texture: give such a policy its own sweep file;
-- a leaderboard file: a defence's keys must be read by its runs; `[defaults]` keys by some run.
+- a leaderboard file: a defence's keys must be read by its runs; `[defaults]` keys by some run;
+- the Gymnasium environment: a perception key of `config_overrides` must be read by its
+  perception (the agent takes the policy's place, so policy keys are not checked).
+Not checked yet: `avsim detect`, `avsim replay` and `avsim snapshot`, whose `--set` builds a
+perception (or a picture) outside the closed loop, where other keys are read.
 
 `scenario`, `vehicle`, `camera` and `loop` keys are read by every run and not checked here.
 `docs/config.md` (`python -m avsim.config_reference`) lists every key with its readers.
