@@ -43,7 +43,7 @@ from avsim.perception.coco.labels import STOP_SIGN_CLASS_ID
 from avsim.perception.coco.ops import upsample_bilinear_tf
 from avsim.perception.detector.model import SignDetector
 from avsim.perception.yolo.preprocess import resize_bilinear
-from avsim.perception.yolo.runner import avsim_class_name
+from avsim.perception.yolo.infer import avsim_class_name
 
 TARGET_NAMES = ("detector", "coco", "yolo", "ensemble", "ensemble_all")
 # A CenterNet cell predicts the object whose centre it holds; cells this far outside the sign's

@@ -8,16 +8,16 @@ import argparse
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     if args.profile:
-        from avsim.bench_profile import run_profile
+        from avsim.bench.profile import run_profile
 
         run_profile(quick=args.quick)
         return 0
     if args.recording:
-        from avsim.bench_recording import print_recording_overhead
+        from avsim.bench.recording_overhead import print_recording_overhead
 
         print_recording_overhead(repeats=1 if args.quick else 3)
         return 0
-    from avsim.bench import run_benchmarks
+    from avsim.bench.speed import run_benchmarks
 
     run_benchmarks(quick=args.quick)
     return 0

@@ -14,7 +14,7 @@ from __future__ import annotations
 from avsim.config import PolicyConfig
 from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy_base import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.world.hd_map import MapHandle
 
 

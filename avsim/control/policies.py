@@ -15,7 +15,7 @@ from avsim.config import PolicyConfig
 from avsim.control import autopilot, map_prior, study_stack, temporal_vote  # noqa: F401  (their registry entries)
 from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import (POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel, Observation,
+from avsim.control.policy_base import (POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel, Observation,
                                   PolicyContext)
 
 __all__ = ["POLICIES", "STOP_CLASS", "BrakeDecision", "BrakingPolicy", "CameraModel", "Observation", "PolicyContext"]

@@ -16,7 +16,7 @@ import statistics
 from collections import deque
 
 from avsim.config import PolicyConfig
-from avsim.control.policy import POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy_base import POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.perception.base import Detection
 
 

@@ -48,7 +48,7 @@ import numpy as np
 from gymnasium import spaces
 
 from avsim.config import MAX_SEED, SimConfig, check_seed, with_overrides
-from avsim.control.policy import BrakeDecision
+from avsim.control.policy_base import BrakeDecision
 from avsim.errors import ConfigError
 from avsim.gym.observation import detections_array, observation_space
 from avsim.gym.reward import reward_terms

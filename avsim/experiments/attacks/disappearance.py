@@ -9,7 +9,7 @@ k is the same for every texture and detector, so textures compare in pairs.
 
 Per frame: the confidence of the detection matching the sign (IoU >= 0.3 with its ground-truth
 box; 0 if none), that box's height, and the braking policy's pinhole estimate of the distance to
-the stop line from it (`avsim.control.policy`). From these:
+the stop line from it (`avsim.control.policy_base`). From these:
 - the disappearance rate (Armory's term; RP2's "% of frames where the sign is missed"): the
   share of frames with no matching detection at or above the braking threshold, per 5-m bin;
 - the first confident detection of each drive, at any range and inside the braking gate (the

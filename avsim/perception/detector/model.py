@@ -20,7 +20,7 @@ and a ReLU-family activation (SiLU costs ~4x a ReLU per element here).
 build_detector() defaults: 0.455 M params (1.8 MB fp32), 1.47 GFLOPs (0.74 GMACs) at 640x480.
 Measured on this machine (2-core AMD EPYC VM, torch 2.13 CPU, fused, channels_last,
 inference_mode; median of 100 frames after warm-up, nothing else running,
-`python -m avsim.perception.detector.bench_latency`): letterbox 0.2 ms + forward 17.3 ms +
+`python -m avsim.bench.detector_latency`): letterbox 0.2 ms + forward 17.3 ms +
 decode/NMS 0.8 ms = 18.4 ms per frame at 1 thread, and 11.4 ms at 2 threads. The forward
 runs at about 85 GFLOP/s on one core, most of what the core's FMA units can do, so the net
 itself has little left to give: the closed loop runs it on a region of interest instead

@@ -39,7 +39,7 @@ from avsim.perception.detector.device import check_device
 from avsim.perception.detector.ema import ModelEMA
 from avsim.perception.ap import mean_ap
 from avsim.perception.detector.train_args import add_train_arguments
-from avsim.perception.detector.evaluate import evaluate_map50
+from avsim.perception.detector.map50 import evaluate_map50
 from avsim.perception.detector.loss import LossWeights, compute_loss
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE, build_detector
 from avsim.perception.detector.weights import load_checkpoint, save_checkpoint

@@ -1,7 +1,7 @@
 """Sweep throughput on this machine: runs per minute with 1 and 2 local workers and with Ray.
 
-    python -m avsim.experiments.bench_sweep                  # the smoke sweep's grid at 2 seeds: 8 oracle runs
-    python -m avsim.experiments.bench_sweep --seeds 4 --no-ray
+    python -m avsim.bench.sweep_throughput                   # the smoke sweep's grid at 2 seeds: 8 oracle runs
+    python -m avsim.bench.sweep_throughput --seeds 4 --no-ray
 
 Every configuration runs the same specs through `run_batch`, as `avsim sweep` does, timed
 from the call to the last record: a pool's process start-up is included. For Ray, the local
@@ -181,7 +181,7 @@ def bench_specs(seeds: int) -> list[RunSpec]:
     return dataclasses.replace(load_sweep(SMOKE_SWEEP), seeds=seeds).specs()
 
 
-PROG = "python -m avsim.experiments.bench_sweep"
+PROG = "python -m avsim.bench.sweep_throughput"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
