@@ -56,9 +56,13 @@ ENSEMBLE_TEMPERATURE = 0.05
 class Target(Protocol):
     name: str
 
-    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence: ...
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """Stop-sign evidence of views `images` (B, 3, H, W) RGB in [0, 1], each field (B,), from the
+        detector's cells near each view's sign box `sign_boxes_px` (B, 4) xyxy [view px].
+        """
 
-    def weight_hashes(self) -> dict[str, str]: ...
+    def weight_hashes(self) -> dict[str, str]:
+        """Weight file name -> its sha256, for the texture's provenance record."""
 
 
 def _frozen(module: torch.nn.Module) -> torch.nn.Module:
@@ -69,6 +73,7 @@ def _frozen(module: torch.nn.Module) -> torch.nn.Module:
 
 
 def sha256_file(path: Path) -> str:
+    """Hex sha256 of the file's bytes."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 

@@ -64,6 +64,7 @@ def benchmark(model: torch.nn.Module, input_size: tuple[int, int], runs: int, co
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """`python -m avsim.bench.detector_latency`: print the detector's per-frame latency; returns the exit status."""
     prog = "python -m avsim.bench.detector_latency"
     parser = OneLineArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--weights", help="trained weights (default: randomly initialised build_detector())")

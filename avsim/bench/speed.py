@@ -148,6 +148,9 @@ def _closed_loop_rows(base: SimConfig, perception: str, towns: tuple[str, ...], 
 
 
 def run_benchmarks(quick: bool = False) -> None:
+    """Print `avsim bench`'s table: physics, rendering, detector latency, closed-loop and Gymnasium
+    speed on this machine (fewer repetitions with `quick`).
+    """
     base = SimConfig()
     frames = 50 if quick else 200
     print(f"avsim bench ({'quick' if quick else 'full'}): {base.camera.width_px}x{base.camera.height_px}, "

@@ -24,6 +24,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
+    """Add `avsim bench` to the subcommands `sub`."""
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.add_argument("--profile", action="store_true",

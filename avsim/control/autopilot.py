@@ -29,6 +29,9 @@ class AutopilotPolicy(BrakingPolicy):
         self._braking = False
 
     def decide(self, obs: Observation) -> BrakeDecision:
+        """Brake by the v^2 / 2d law for the map's stop line less `autopilot_stop_margin_m`, from the step
+        that asks for `autopilot_decel_fraction` of full braking on; nothing before the map shows a line.
+        """
         line_m = self._map.stop_line_dist_m()
         if line_m is None:
             return BrakeDecision(0.0)

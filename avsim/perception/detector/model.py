@@ -63,6 +63,7 @@ class Backbone(nn.Module):
         return nn.Sequential(ConvBNAct(c_in, c_out, 3, 2, act=act), *(Bottleneck(c_out, 0.5, act) for _ in range(depth)))
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(B, 3, H, W) -> (C3, C4, C5) at strides 8, 16 and 32 (class docstring)."""
         c3 = self.stage3(self.stem(x))
         c4 = self.stage4(c3)
         return c3, c4, self.stage5(c4)
@@ -80,6 +81,7 @@ class Neck(nn.Module):
         self.up = nn.Upsample(scale_factor=2.0, mode="nearest")
 
     def forward(self, c3: torch.Tensor, c4: torch.Tensor, c5: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(C3, C4, C5) -> (P3, P4): the coarser map upsampled x2 and fused into the finer, twice."""
         p4 = self.fuse4(torch.cat([self.up(self.lateral5(c5)), c4], dim=1))
         p3 = self.fuse3(torch.cat([self.up(self.lateral4(p4)), c3], dim=1))
         return p3, p4
@@ -106,6 +108,7 @@ class Head(nn.Module):
             self.reg_pred.bias.copy_(torch.tensor([prior_logit, 0.0, 0.0, INIT_LOG_SIZE, INIT_LOG_SIZE]))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, c_in, h, w) -> (B, 1 + num_classes + 4, h, w): objectness logit, class logits, box."""
         reg = self.reg_pred(self.reg_conv(x))
         return torch.cat([reg[:, :1], self.cls_pred(self.cls_conv(x)), reg[:, 1:]], dim=1)
 
