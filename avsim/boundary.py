@@ -69,6 +69,7 @@ def _report(message: str, status: int, debug: bool) -> int:
 
 
 def one_line(text: str) -> str:
+    """`text` with its lines joined by single spaces, blank lines dropped: an error message on one line."""
     return " ".join(line.strip() for line in text.splitlines() if line.strip())
 
 

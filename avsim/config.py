@@ -226,6 +226,7 @@ class LoopConfig:
 
     @property
     def substeps(self) -> int:
+        """Physics steps per control step: control_dt_s / physics_dt_s, rounded (25 at the defaults)."""
         return round(self.control_dt_s / self.physics_dt_s)
 
 
@@ -430,6 +431,7 @@ class SimConfig:
     policy: PolicyConfig = field(default_factory=PolicyConfig)
 
     def to_dict(self) -> dict[str, Any]:
+        """The whole config as nested plain dicts (section -> key -> value), as saved beside every result."""
         return dataclasses.asdict(self)
 
 

@@ -192,5 +192,6 @@ class ClosedLoop:
                          stop_required=self.scene.stop_required)
 
     def close(self) -> None:
+        """Release the perception's and the camera rig's resources (worker threads, GL contexts)."""
         self.perception.close()
         self.rig.close()

@@ -106,6 +106,7 @@ class RunResult:
         return is_phantom_brake(self.stop_required, self.max_brake)
 
     def to_json_dict(self) -> dict[str, Any]:
+        """The record as a JSON-ready dict, one key per field (the keys of `avsim run --json` and results.jsonl)."""
         return asdict(self)
 
 
@@ -205,4 +206,5 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> None:
 
 
 def finite_or_none(value: float | None) -> float | None:
+    """`value` if it is a finite number, else None (JSON has no NaN or infinity)."""
     return value if value is not None and math.isfinite(value) else None

@@ -77,6 +77,7 @@ def add_output_argument(parser: argparse.ArgumentParser, flag: str, *, kind: str
 
 
 def declared_outputs(parser: argparse.ArgumentParser) -> tuple[OutputArg, ...]:
+    """The output arguments `add_output_argument` declared on `parser` (none: an empty tuple)."""
     return parser.get_default(_DEFAULT_KEY) or ()
 
 

@@ -103,6 +103,7 @@ class StageTimer:
         return dict(self._cpu_seconds)
 
     def calls(self) -> dict[str, int]:
+        """Calls counted per stage."""
         return dict(self._calls)
 
 

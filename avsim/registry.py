@@ -19,6 +19,7 @@ class Registry(Generic[T]):
         self._entries: dict[str, T] = {}
 
     def add(self, name: str, entry: T) -> T:
+        """Register `entry` under `name` and return it; a name registered twice is a bug (ValueError)."""
         if name in self._entries:
             raise ValueError(f"{self._kind} '{name}' is registered twice")
         self._entries[name] = entry
@@ -29,6 +30,7 @@ class Registry(Generic[T]):
         return lambda entry: self.add(name, entry)
 
     def get(self, name: str) -> T:
+        """The entry registered under `name`, or a one-line ConfigError listing the names there are."""
         try:
             return self._entries[name]
         except KeyError:
@@ -37,6 +39,7 @@ class Registry(Generic[T]):
             ) from None
 
     def names(self) -> list[str]:
+        """Every registered name, sorted."""
         return sorted(self._entries)
 
     def __contains__(self, name: object) -> bool:

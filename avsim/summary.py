@@ -33,6 +33,9 @@ def _dist(value: float | None, what: str) -> str:
 
 
 def format_summary(result: RunResult, wall_s: float) -> str:
+    """`avsim run`'s printed summary of one run: the scenario, outcome, time to stop, where braking
+    began, first detection, peak speed, stop position [m, world] and simulated time against `wall_s` [s].
+    """
     cfg = result.config
     sc = cfg["scenario"]
     tts = f"{result.time_to_stop_s:.2f} s (mean deceleration {result.mean_decel_mps2:.2f} m/s^2)" if result.time_to_stop_s else "n/a"

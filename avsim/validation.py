@@ -223,6 +223,7 @@ class OneLineArgumentParser(argparse.ArgumentParser):
     as avsim's are; for `avsim` and every `python -m avsim....` entry point."""
 
     def error(self, message: str) -> typing.NoReturn:
+        """Print argparse's complaint as one line that points to --help, and exit 2."""
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 

@@ -213,8 +213,8 @@ def test_values_are_checked_before_the_work_not_after(case, tmp_path, capsys, mo
 ENTRY_POINTS = {
     "brake_test --speed-kmh inf": ("avsim.vehicle.brake_test", ["--speed-kmh", "inf"], "--speed-kmh"),
     "brake_test --speed-kmh 0": ("avsim.vehicle.brake_test", ["--speed-kmh", "0"], "--speed-kmh"),
-    "bench_sweep --seeds 0": ("avsim.experiments.bench_sweep", ["--seeds", "0"], "--seeds"),
-    "bench_latency --threads 0": ("avsim.perception.detector.bench_latency", ["--threads", "0"], "--threads"),
+    "bench_sweep --seeds 0": ("avsim.bench.sweep_throughput", ["--seeds", "0"], "--seeds"),
+    "bench_latency --threads 0": ("avsim.bench.detector_latency", ["--threads", "0"], "--threads"),
     "detector.train --lr nan": ("avsim.perception.detector.train", ["--data", "d", "--out", "w.pt", "--lr", "nan"], "--lr"),
     "coco.realism --threshold 1": ("avsim.perception.coco.realism", ["--data", "d", "--threshold", "1"], "--threshold"),
 }

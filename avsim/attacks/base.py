@@ -25,11 +25,16 @@ class Scene(Protocol):
     face_mask: torch.Tensor  # (1, H_tex, W_tex) 1 on the sign face, 0 outside the octagon
 
     def evidence(self, texture: torch.Tensor, n_views: int, generator: torch.Generator,
-                 sequence: bool = False) -> StopEvidence: ...
+                 sequence: bool = False) -> StopEvidence:
+        """Stop-sign evidence (each field (n_views,)) for `texture` (3, H_tex, W_tex) in [0, 1] in views
+        sampled with `generator`; `sequence` draws them from one drive-by, far to near.
+        """
 
-    def evidence_of(self, texture: torch.Tensor, views: list[int], generator: torch.Generator) -> StopEvidence: ...
+    def evidence_of(self, texture: torch.Tensor, views: list[int], generator: torch.Generator) -> StopEvidence:
+        """Stop-sign evidence (each field (len(views),)) for `texture` in the given views of the bank."""
 
-    def sample_sequences(self, n_sequences: int, max_frames: int, generator: torch.Generator) -> list[list[int]]: ...
+    def sample_sequences(self, n_sequences: int, max_frames: int, generator: torch.Generator) -> list[list[int]]:
+        """`n_sequences` drive-bys as lists of view indices, far to near, each at most `max_frames` long."""
 
 
 @dataclass
@@ -53,6 +58,9 @@ class AttackResult:
     max_changed_fraction: float | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
+        """The texture's JSON record: method, hyperparameters, seed, SSIM and L-inf to the clean sign,
+        final loss and steps run (and any derived figures); the texture itself is the PNG.
+        """
         return {"method": self.method, "hyperparameters": self.hyperparameters, "seed": self.seed,
                 "ssim": self.ssim, "linf": self.linf, "final_loss": self.loss_history[-1] if self.loss_history else None,
                 "steps_run": len(self.loss_history), **({"derived": self.derived} if self.derived else {})}

@@ -27,6 +27,9 @@ class Chen(Attack):
         self.eps, self.similarity_weight, self.logit_floor = eps, similarity_weight, logit_floor
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): Adam on delta, |delta| <= eps on
+        the face, minimising the floored class logit over EOT views plus the similarity penalty.
+        """
         mask = self.scene.face_mask
 
         def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:

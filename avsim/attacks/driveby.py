@@ -99,6 +99,9 @@ class DriveBy(Attack):
         return loss
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): within the SSIM floor, minimising
+        the sequence loss (`sequence_loss`) over sampled whole drive-bys.
+        """
         def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
             sequences = self.scene.sample_sequences(self.sequences_per_step, self.views_per_step, gen)
             return self.sequence_loss(texture, sequences, gen)

@@ -56,6 +56,9 @@ class Eykholt(Attack):
         self.nps_weight, self.tv_weight, self.norm_weight = nps_weight, tv_weight, norm_weight
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): stickers of free colour inside a
+        random sticker mask (sets `change_mask`), minimising the score plus NPS, TV and norm terms.
+        """
         mask = sticker_mask(self.scene.face_mask, self.n_stickers, self.max_area_fraction, generator)
         # The area budget must hold on the saved full-size texture too (`generate.apply_change`).
         self.change_mask, self.max_changed_fraction = mask, self.max_area_fraction

@@ -65,15 +65,18 @@ def texture_tensor(rgb: np.ndarray) -> torch.Tensor:
 
 
 def tensor_to_rgb(texture: torch.Tensor) -> np.ndarray:
+    """(3, H, W) float texture in [0, 1] -> (H, W, 3) uint8 RGB image (clamped, rounded)."""
     return (texture.clamp(0, 1) * 255).round().to(torch.uint8).permute(1, 2, 0).numpy()
 
 
 def clean_stop_texture() -> np.ndarray:
+    """The clean stop-sign face, textures/stop_sign.png, as (H, W, 3) uint8 RGB."""
     return load_texture_png(TEXTURE_DIR / "stop_sign.png")
 
 
 def downsample(rgb: np.ndarray, size_px: int = OPTIMISED_TEXTURE_PX) -> torch.Tensor:
     # Area averaging is the box filter a mipmap level applies.
+    """(H, W, 3) uint8 RGB -> (3, size_px, size_px) float texture in [0, 1], by area averaging."""
     return texture_tensor(cv2.resize(rgb, (size_px, size_px), interpolation=cv2.INTER_AREA))
 
 
@@ -125,6 +128,7 @@ def within_budget_on_disk(clean_full: torch.Tensor, attacked_full: torch.Tensor,
 
 
 def load_detector(weights_path: str = ""):
+    """The own detector (fused for inference) from `weights_path` (default: the shipped weights) and its metadata."""
     model, meta = load_weights(resolve_weights_path(weights_path))
     return model.fuse(), meta
 
@@ -213,6 +217,7 @@ def check_hyperparameters(method: str, seed: int, hyperparameters: dict[str, Any
 
 
 def check_ssim_floor(ssim_floor: float) -> None:
+    """Refuse a camouflage budget outside (0, 1) with a one-line ConfigError."""
     if not 0 < ssim_floor < 1:
         raise ConfigError(f"--ssim-floor must be in (0, 1) (the camouflage budget is {SSIM_FLOOR}), got {ssim_floor}")
 

@@ -27,6 +27,9 @@ class LuV2(Attack):
         self.eps = eps
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): |delta| <= eps on the face,
+        minimising the mean stop-sign score over a drive-by sequence of views.
+        """
         def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
             return self.scene.evidence(texture, self.views_per_step, gen, sequence=True).score.mean()
 

@@ -30,6 +30,9 @@ class LuV3(Attack):
         self.eps, self.temperature, self.tv_weight = eps, temperature, tv_weight
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): |delta| <= eps on the face,
+        minimising the soft maximum of the score over a drive-by sequence plus total variation.
+        """
         def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
             score = self.scene.evidence(texture, self.views_per_step, gen, sequence=True).score
             soft_max = self.temperature * torch.logsumexp(score / self.temperature, dim=0)

@@ -41,6 +41,9 @@ class RangeInflation(Attack):
         return log_height_ratio(evidence.box_height_px, self.scene.bank.true_height_px[torch.as_tensor(views)]).mean()
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): within the SSIM floor, minimising
+        the mean log ratio of predicted to true box height over sampled drive-bys.
+        """
         def loss(texture: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
             sequences = self.scene.sample_sequences(self.sequences_per_step, self.views_per_step, gen)
             return self.height_loss(texture, [v for s in sequences for v in s], gen)

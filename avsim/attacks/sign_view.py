@@ -66,6 +66,7 @@ class SignView:
 
     @property
     def image_hw(self) -> tuple[int, int]:
+        """(height, width) [px] of the camera image the view is in."""
         return self.intrinsics.height_px, self.intrinsics.width_px
 
     def corner_depths_m(self) -> np.ndarray:

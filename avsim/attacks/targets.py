@@ -43,7 +43,7 @@ from avsim.perception.coco.labels import STOP_SIGN_CLASS_ID
 from avsim.perception.coco.ops import upsample_bilinear_tf
 from avsim.perception.detector.model import SignDetector
 from avsim.perception.yolo.preprocess import resize_bilinear
-from avsim.perception.yolo.runner import avsim_class_name
+from avsim.perception.yolo.infer import avsim_class_name
 
 TARGET_NAMES = ("detector", "coco", "yolo", "ensemble", "ensemble_all")
 # A CenterNet cell predicts the object whose centre it holds; cells this far outside the sign's
@@ -56,9 +56,13 @@ ENSEMBLE_TEMPERATURE = 0.05
 class Target(Protocol):
     name: str
 
-    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence: ...
+    def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """Stop-sign evidence of views `images` (B, 3, H, W) RGB in [0, 1], each field (B,), from the
+        detector's cells near each view's sign box `sign_boxes_px` (B, 4) xyxy [view px].
+        """
 
-    def weight_hashes(self) -> dict[str, str]: ...
+    def weight_hashes(self) -> dict[str, str]:
+        """Weight file name -> its sha256, for the texture's provenance record."""
 
 
 def _frozen(module: torch.nn.Module) -> torch.nn.Module:
@@ -69,6 +73,7 @@ def _frozen(module: torch.nn.Module) -> torch.nn.Module:
 
 
 def sha256_file(path: Path) -> str:
+    """Hex sha256 of the file's bytes."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 

@@ -14,7 +14,7 @@ Two ways to choose a group's distances (`ViewBankSpec.frame_spacing_m`):
   first frame, every frame in which the sign is in view. The drive-by objectives take a soft
   maximum over such a sequence, as the car brakes on its first confident frame.
 
-Each view also carries what the braking gate needs (`avsim.control.policy`): the true box
+Each view also carries what the braking gate needs (`avsim.control.policy_base`): the true box
 height and the policy's pinhole estimate of the stop line for a box of that height, so an
 objective can tell how far a predicted box would put the sign.
 
@@ -139,7 +139,7 @@ class ViewBank:
     The braking gate's geometry, per view (N,): the policy's pinhole estimate of the distance to
     the stop line for a box as tall as the true one is `gate_ahead_m * true_height / h -
     gate_offset_m` for a box h px tall (the depth scales as 1 / h; the offset is the stop line
-    before the sign plus the bumper ahead of the camera, `avsim.control.policy`)."""
+    before the sign plus the bumper ahead of the camera, `avsim.control.policy_base`)."""
 
     backgrounds: torch.Tensor
     corners_px: torch.Tensor

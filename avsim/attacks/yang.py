@@ -40,6 +40,9 @@ class Yang(Attack):
         self.eps_peak, self.gamma, self.saliency_views = eps_peak, gamma, saliency_views
 
     def forward(self, clean: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """`clean` (3, H, W) in [0, 1] -> the attacked texture (3, H, W): a per-texel bound from the
+        detector's saliency (records `mean_bound`), minimising the mean score over EOT views.
+        """
         attention = saliency_attention(self.scene, clean, self.saliency_views, generator)
         bound = self.eps_peak * attention ** self.gamma
         mask = self.scene.face_mask

@@ -123,6 +123,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
+    """Add `avsim attack generate | eval | sweep` to the subcommands `sub`."""
     attack = sub.add_parser("attack", help="optimise adversarial stop-sign textures and measure them in renders")
     asub = attack.add_subparsers(dest="attack_command", required=True)
     gen = asub.add_parser("generate", help="optimise one texture against a detector (or remake one with --from)")

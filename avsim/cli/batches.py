@@ -51,18 +51,26 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+BACKEND_HELP = "local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')"
+
+
+def _add_pool_flags(parser: argparse.ArgumentParser, workers_help: str, backend_help: str) -> None:
+    """--workers, --backend, --batch and --address: where a batch command's runs run."""
+    parser.add_argument("--workers", type=WORKERS_FLAG, help=workers_help)
+    parser.add_argument("--backend", choices=("local", "ray"), default="local", help=backend_help)
+    parser.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    parser.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+
+
 def add_commands(sub) -> None:
+    """Add `avsim reproduce`, `avsim sweep` and `avsim leaderboard` to the subcommands `sub`."""
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
     rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
     rep.add_argument("--all", action="store_true",
                      help="also every other experiment file: the sensitivity, the COCO network's closed loop and the "
                           "attack-success files (hours on 2 cores; the leaderboard is `avsim leaderboard`)")
-    rep.add_argument("--workers", type=WORKERS_FLAG, help="runs at once: worker processes, or the local Ray cluster's CPUs "
-                                                  "(default: one per core); with --address, at most this many in flight")
-    rep.add_argument("--backend", choices=("local", "ray"), default="local",
-                     help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
-    rep.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
-    rep.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+    _add_pool_flags(rep, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
+                         "with --address, at most this many in flight", BACKEND_HELP)
     add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
     rep.add_argument("--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
@@ -75,14 +83,10 @@ def add_commands(sub) -> None:
                                        "and safety_map.png")
     swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
     add_output_argument(swp, "--out", kind=FOLDER, required=True, help="results folder")
-    swp.add_argument("--workers", type=WORKERS_FLAG,
-                     help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
-                          "with --address, at most this many runs in flight (default: the cluster's CPUs)")
-    swp.add_argument("--backend", choices=("local", "ray"), default="local",
-                     help="local: a pool of processes on this machine (default); ray: Ray tasks, on a local "
-                          "cluster or the one at --address (pip install 'avsim[ray]')")
-    swp.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
-    swp.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+    _add_pool_flags(swp, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
+                         "with --address, at most this many runs in flight (default: the cluster's CPUs)",
+                    "local: a pool of processes on this machine (default); ray: Ray tasks, on a local "
+                    "cluster or the one at --address (pip install 'avsim[ray]')")
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -95,13 +99,9 @@ def add_commands(sub) -> None:
     board.add_argument("file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
     add_output_argument(board, "--out", kind=FOLDER, default="results/leaderboard", help="results folder")
     board.add_argument("--quick", action="store_true", help="the file's quick subset (quick_seeds per place and scenario)")
-    board.add_argument("--workers", type=WORKERS_FLAG,
-                       help="runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)")
-    board.add_argument("--backend", choices=("local", "ray"), default="local",
-                       help="local: a pool of processes on this machine (default); ray: Ray tasks (pip install 'avsim[ray]')")
-    board.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
+    _add_pool_flags(board, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)",
+                    BACKEND_HELP)
     board.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
-    board.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_recording_modes(board)

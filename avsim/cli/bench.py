@@ -8,22 +8,23 @@ import argparse
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     if args.profile:
-        from avsim.bench_profile import run_profile
+        from avsim.bench.profile import run_profile
 
         run_profile(quick=args.quick)
         return 0
     if args.recording:
-        from avsim.bench_recording import print_recording_overhead
+        from avsim.bench.recording_overhead import print_recording_overhead
 
         print_recording_overhead(repeats=1 if args.quick else 3)
         return 0
-    from avsim.bench import run_benchmarks
+    from avsim.bench.speed import run_benchmarks
 
     run_benchmarks(quick=args.quick)
     return 0
 
 
 def add_commands(sub) -> None:
+    """Add `avsim bench` to the subcommands `sub`."""
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
     bench.add_argument("--profile", action="store_true",

@@ -65,6 +65,7 @@ The oracle needs a simulated scene and cannot run on an image."""
 
 
 def add_commands(sub) -> None:
+    """Add `avsim detect` and `avsim replay` to the subcommands `sub`."""
     detect = sub.add_parser("detect", help="run a perception on image files; one JSON line of detections per image",
                             description=DETECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     detect.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")

@@ -66,6 +66,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
+    """Add `avsim detector make-data | train | export | eval` to the subcommands `sub`."""
     detector = sub.add_parser("detector", help="make data for, train and evaluate the sign detector")
     dsub = detector.add_subparsers(dest="detector_command", required=True)
     data = dsub.add_parser("make-data", help="render labelled sign images (boxes from segmentation)")

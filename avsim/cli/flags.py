@@ -21,6 +21,9 @@ INT_FLAG = number_flag(integer=True)
 
 
 def add_scenario_flags(parser: argparse.ArgumentParser) -> None:
+    """The flags of a command that builds a scenario: --town, --placement, --sign, --speed-kmh, --seed,
+    --physics-dt-s, --control-dt-s and --set KEY=VALUE.
+    """
     parser.add_argument("--town", help="town name (town03, town07, town10)")
     parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
     parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
@@ -45,6 +48,7 @@ def flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def config_from_args(args: argparse.Namespace):
+    """The `SimConfig` the scenario flags and --set describe, over the defaults."""
     from avsim.config import SimConfig, with_overrides
 
     return with_overrides(SimConfig(), flag_overrides(args))

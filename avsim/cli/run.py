@@ -61,6 +61,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
+    """Add `avsim run` to the subcommands `sub`."""
     run = sub.add_parser("run", help="drive one scenario and print its summary")
     add_scenario_flags(run)
     run.add_argument("--policy", help="braking policy: baseline, adjusted, side_camera, combined, study_stack, temporal_vote, "

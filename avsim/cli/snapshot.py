@@ -35,6 +35,7 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
+    """Add `avsim snapshot` to the subcommands `sub`."""
     snap = sub.add_parser("snapshot", help="save front and side camera images at a distance from the stop line")
     add_scenario_flags(snap)
     snap.add_argument("--dist-m", type=number_flag(unit="m"), default=30.0, help="front bumper to stop line [m]")

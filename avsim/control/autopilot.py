@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from avsim.config import PolicyConfig
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy_base import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.world.hd_map import MapHandle
 
 
@@ -30,6 +30,9 @@ class AutopilotPolicy(BrakingPolicy):
         self._braking = False
 
     def decide(self, obs: Observation) -> BrakeDecision:
+        """Brake by the v^2 / 2d law for the map's stop line less `autopilot_stop_margin_m`, from the step
+        that asks for `autopilot_decel_fraction` of full braking on; nothing before the map shows a line.
+        """
         line_m = self._map.stop_line_dist_m()
         if line_m is None:
             return BrakeDecision(0.0)

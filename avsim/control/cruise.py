@@ -20,6 +20,9 @@ class SpeedController:
     _integral: float = field(default=0.0, repr=False)
 
     def throttle(self, speed_mps: float, dt_s: float) -> float:
+        """Throttle in [0, 1] for this control step of `dt_s` [s] towards `target_mps` from `speed_mps`
+        (PI, integrating only while the output is not saturated in the error's direction).
+        """
         error = self.target_mps - speed_mps
         unclamped = self.kp_per_mps * error + self.ki_per_m * self._integral
         # Integrate only while the output is not saturated in the error's direction.
@@ -41,6 +44,9 @@ class LaneKeeper:
     max_steer_rad: float = 0.5
 
     def steer_rad(self, y_m: float, yaw_rad: float, speed_mps: float) -> float:
+        """Steering angle [rad], clamped to +-`max_steer_rad`, positive to the left, from the car's lateral
+        position `y_m` (world frame [m]), heading `yaw_rad` and speed (a Stanley-style lane keeper).
+        """
         cross_track_m = y_m - self.lane_y_m  # positive: left of the lane centre
         steer = -yaw_rad - math.atan2(self.gain * cross_track_m, max(speed_mps, 0.0) + self.softening_mps)
         return min(max(steer, -self.max_steer_rad), self.max_steer_rad)

@@ -14,7 +14,7 @@ from __future__ import annotations
 from avsim.config import PolicyConfig
 from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import GATE_KEYS, POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy_base import GATE_KEYS, POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.world.hd_map import MapHandle
 
 
@@ -45,6 +45,10 @@ class MapPriorPolicy(BrakingPolicy):
         self._braking = False
 
     def decide(self, obs: Observation) -> BrakeDecision:
+        """Brake by the v^2 / 2d law for the nearer of the map's and the camera's stop lines (each less
+        its margin), once that asks for `autopilot_decel_fraction` of full braking; the estimate logged
+        is the nearer stop line [m].
+        """
         camera_m = self._camera.update(self.gated_stop_sign(obs, "front"), obs.speed_mps)
         map_m = self._map.stop_line_dist_m()
         aims = [line_m - margin_m for line_m, margin_m in ((map_m, self.config.autopilot_stop_margin_m),

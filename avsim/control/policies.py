@@ -15,8 +15,8 @@ from avsim.config import PolicyConfig
 from avsim.control import autopilot, map_prior, study_stack, temporal_vote  # noqa: F401  (their registry entries)
 from avsim.control.estimate import DeadReckonedEstimate
 from avsim.control.brake_law import brake_command, required_decel_mps2
-from avsim.control.policy import (GATE_KEYS, POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel,
-                                  Observation, PolicyContext)
+from avsim.control.policy_base import (GATE_KEYS, POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, CameraModel,
+                                       Observation, PolicyContext)
 
 __all__ = ["POLICIES", "STOP_CLASS", "BrakeDecision", "BrakingPolicy", "CameraModel", "Observation", "PolicyContext"]
 
@@ -33,6 +33,9 @@ class BaselinePolicy(BrakingPolicy):
         self._triggered = False
 
     def decide(self, obs: Observation) -> BrakeDecision:
+        """`baseline_brake` from the first step the front camera sees a stop sign through the braking gate
+        on, else 0; the estimate is this step's gated one (None without a gated sign).
+        """
         gated = self.gated_stop_sign(obs, "front")
         self._triggered = self._triggered or gated is not None
         return BrakeDecision(self.config.baseline_brake if self._triggered else 0.0, gated[1] if gated else None)
@@ -66,6 +69,7 @@ class AdjustedBrakingPolicy(BrakingPolicy):
         return self._estimate.update(self.gated_stop_sign(obs, "front"), obs.speed_mps)
 
     def decide(self, obs: Observation) -> BrakeDecision:
+        """The v^2 / 2d brake for this step's stop-line estimate less `stop_margin_m` (0 without an estimate)."""
         estimate = self.update_estimate(obs)
         if estimate is None:
             return BrakeDecision(0.0)
@@ -73,11 +77,11 @@ class AdjustedBrakingPolicy(BrakingPolicy):
         return BrakeDecision(brake_command(decel, self.config.a_max_mps2, self.config.brake_multiplier), estimate, decel)
 
 
-@POLICIES.register("side_camera")
-class SideCameraPolicy(BaselinePolicy):
-    """Defence 2: the baseline rule on the front camera, plus full brake as soon as the side
-    camera (yawed towards the roadside) sees a stop sign through the braking gate (its own
-    pinhole estimate, with the side camera's intrinsics and yaw)."""
+class SideCameraTrigger(BrakingPolicy):
+    """Defence 2's trigger, shared by `side_camera` and `combined`: whatever the front-camera rule
+    it is mixed into decides, full brake from the first step the side camera (yawed towards the
+    roadside) sees a stop sign through the braking gate (its own pinhole estimate, with the side
+    camera's intrinsics and yaw) to the end of the run. The front rule's estimate is kept."""
 
     cameras = ("front", "side")
 
@@ -86,25 +90,22 @@ class SideCameraPolicy(BaselinePolicy):
         self._side_triggered = False
 
     def decide(self, obs: Observation) -> BrakeDecision:
-        decision = super().decide(obs)
-        self._side_triggered = self._side_triggered or self.gated_stop_sign(obs, "side") is not None
-        return BrakeDecision(1.0, decision.est_stop_line_dist_m) if self._side_triggered else decision
-
-
-@POLICIES.register("combined")
-class CombinedDefencePolicy(AdjustedBrakingPolicy):
-    """Both defences as the study combined them: adjusted braking on the front camera,
-    overridden by full brake once the side camera sees a stop sign through the braking gate."""
-
-    cameras = ("front", "side")
-
-    def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
-        super().__init__(config, context)
-        self._side_triggered = False
-
-    def decide(self, obs: Observation) -> BrakeDecision:
+        """The front rule's decision, or full brake (its estimate kept) once the side camera has triggered."""
         decision = super().decide(obs)
         self._side_triggered = self._side_triggered or self.gated_stop_sign(obs, "side") is not None
         if self._side_triggered:
             return BrakeDecision(1.0, decision.est_stop_line_dist_m, decision.required_decel_mps2)
         return decision
+
+
+@POLICIES.register("side_camera")
+class SideCameraPolicy(SideCameraTrigger, BaselinePolicy):
+    """Defence 2: the baseline rule on the front camera, plus full brake as soon as the side
+    camera sees a stop sign through the braking gate (`SideCameraTrigger`)."""
+
+
+@POLICIES.register("combined")
+class CombinedDefencePolicy(SideCameraTrigger, AdjustedBrakingPolicy):
+    """Both defences as the study combined them: adjusted braking on the front camera,
+    overridden by full brake once the side camera sees a stop sign through the braking gate
+    (`SideCameraTrigger`)."""

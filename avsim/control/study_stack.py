@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from avsim.config import PolicyConfig
 from avsim.control.brake_law import required_decel_mps2
-from avsim.control.policy import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy_base import POLICIES, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.perception.base import Detection
 from avsim.sensors.pinhole import pinhole_distance_m
 

@@ -16,7 +16,7 @@ import statistics
 from collections import deque
 
 from avsim.config import PolicyConfig
-from avsim.control.policy import POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, Observation, PolicyContext
+from avsim.control.policy_base import POLICIES, STOP_CLASS, BrakeDecision, BrakingPolicy, Observation, PolicyContext
 from avsim.perception.base import Detection
 
 
@@ -76,6 +76,7 @@ class TemporalVotePolicy(BrakingPolicy):
         return found
 
     def votes(self) -> list[tuple[float, float]]:
+        """The window's votes, oldest first: (odometer [m], stop-line estimate [m]) of each frame that voted."""
         return [vote for vote in self._window if vote is not None]
 
     def consistent(self) -> bool:
@@ -89,6 +90,9 @@ class TemporalVotePolicy(BrakingPolicy):
         return slope is not None and abs(slope + 1.0) <= self.config.vote_range_rate_tol
 
     def decide(self, obs: Observation) -> BrakeDecision:
+        """Vote with this frame's best candidate (the one nearest where the earlier votes put the sign),
+        and brake `baseline_brake` from the step the votes first agree (`consistent`) on.
+        """
         found = self.candidates(obs)
         track = self.votes()
         if found and track:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avsim.experiments import study
+from avsim.experiments import study_figures
 from avsim.experiments.report_cells import Cells, origin_before_sign_m
 from avsim.experiments.spec import Experiment
 
@@ -87,7 +87,7 @@ def _stop_positions(out_dir: Path, experiment: Experiment, cells: Cells) -> Path
     for row, (colour, name) in enumerate(zip(_COLOURS, names)):
         along = [origin_before_sign_m(r) for r in cells.of(stem, name)]
         ax.scatter(along, [row] * len(along), color=colour, s=30, zorder=3, label="avsim, one point per seed" if row == 0 else None)
-        theirs = study.TABLE3.get(name)
+        theirs = study_figures.TABLE3.get(name)
         if theirs is not None:
             ax.scatter([theirs.before_sign_m], [row], facecolors="none", edgecolors="black", s=70, marker="D", zorder=4,
                        label="the study (Table III)" if row == 0 else None)

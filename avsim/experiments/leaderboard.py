@@ -92,6 +92,7 @@ class Place:
 
     @property
     def label(self) -> str:
+        """"town placement", as the report's rows name the place."""
         return f"{self.town} {self.placement}"
 
 
@@ -121,6 +122,7 @@ class LeaderboardRun:
 
     @property
     def label(self) -> str:
+        """"defence | condition | place", the run's name in progress lines and errors."""
         return f"{self.defence} | {self.condition} | {self.place}"
 
 
@@ -139,9 +141,11 @@ class Leaderboard:
 
     @property
     def name(self) -> str:
+        """The leaderboard file's stem (e.g. "defences")."""
         return self.path.stem
 
     def condition(self, defence: Defence, name: str) -> Condition:
+        """The condition called `name` for `defence`: its own adaptive attack for "adaptive", else the file's."""
         return defence.adaptive if name == "adaptive" else self.conditions[name]
 
     def size(self, quick: bool = False) -> int:
@@ -174,6 +178,7 @@ class Leaderboard:
         return runs
 
     def compose(self, *layers: Mapping[str, Any]) -> SimConfig:
+        """The file's base config with the override `layers` merged over it in order (later wins)."""
         merged: dict[str, Any] = {}
         for layer in layers:
             merged = deep_merge(merged, layer)
@@ -190,6 +195,7 @@ def unique_specs(leaderboard: Leaderboard, runs: list[LeaderboardRun]) -> list[R
 
 
 def place_overrides(place: Place) -> dict[str, Any]:
+    """The overrides that put a run at `place`: scenario.town and scenario.placement."""
     return {"scenario": {"town": place.town, "placement": place.placement}}
 
 

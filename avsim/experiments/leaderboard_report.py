@@ -52,10 +52,12 @@ class Row:
 
     @property
     def safety(self) -> float | None:
+        """Share of attacked runs that stopped before the sign (None without attacked runs)."""
         return self.attacked[0] / self.attacked[1] if self.attacked[1] else None
 
     @property
     def availability(self) -> float | None:
+        """Share of runs on roads that need no stop without a phantom brake (None without such runs)."""
         return 1 - self.phantom[0] / self.phantom[1] if self.phantom[1] else None
 
 
@@ -78,6 +80,7 @@ class Results:
         return ok, sum(r["status"] == "failed" for r in seen.values())
 
     def failed(self) -> list[Record]:
+        """The failed runs' records, one per run (by spec hash)."""
         records = {r["spec_hash"]: r for _, r in self.pairs if r is not None and r["status"] == "failed"}
         return list(records.values())
 
@@ -132,6 +135,7 @@ def _table(header: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
 
 
 def leaderboard_table(table: Sequence[Row]) -> list[str]:
+    """The headline table as Markdown lines: one row per defence, Pareto-front defences in bold."""
     front = pareto_front(table)
     body = []
     for row in table:
@@ -149,6 +153,7 @@ def leaderboard_table(table: Sequence[Row]) -> list[str]:
 
 
 def condition_table(board: Leaderboard, results: Results) -> list[str]:
+    """Markdown lines: per defence and attack condition, the sign, the stop rate and the margins [m]."""
     body = []
     for defence in board.defences:
         for name in CONDITIONS:
@@ -166,6 +171,7 @@ def condition_table(board: Leaderboard, results: Results) -> list[str]:
 
 
 def place_table(board: Leaderboard, results: Results) -> list[str]:
+    """Markdown lines: per defence, the attacked stop rate at each place (town and placement)."""
     labels = [place.label for place in board.places]
     body = [[defence.name, *(_rate(*_stopped(results.of(defence.name, SAFETY, ATTACKED, label)[0])) for label in labels)]
             for defence in board.defences]
@@ -173,6 +179,7 @@ def place_table(board: Leaderboard, results: Results) -> list[str]:
 
 
 def availability_table(board: Leaderboard, results: Results) -> list[str]:
+    """Markdown lines: per defence and availability scenario, phantom brakes, phantom stops and the largest brake."""
     body = []
     for defence in board.defences:
         for scenario in board.availability:

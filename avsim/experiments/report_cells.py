@@ -55,9 +55,11 @@ class Cells:
                 self.seeds[record["experiment"], record["cell"]].append(record["seed"])
 
     def of(self, experiment: str, cell: str) -> list[dict[str, Any]]:
+        """The run results of one cell of one experiment (empty if it has none)."""
         return self.results.get((experiment, cell), [])
 
     def values(self, experiment: str, cell: str, key: str | Callable[[dict[str, Any]], float | None]) -> list[float | None]:
+        """`key` (a result field, or a function of a result) for each run of the cell."""
         get = key if callable(key) else (lambda r: r[key])
         return [get(r) for r in self.of(experiment, cell)]
 

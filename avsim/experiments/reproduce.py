@@ -111,7 +111,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
 def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, workers: int | None, progress: bool,
                     backend: str, address: str | None, started: float, started_at: dt.datetime, batch: int, rrd: str,
                     mcap: str) -> Path:
-    from avsim.experiments.report import write_report
+    from avsim.experiments.reproduce_report import write_report
 
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)

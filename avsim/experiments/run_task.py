@@ -64,6 +64,7 @@ class RunSpec:
 
     @property
     def spec_hash(self) -> str:
+        """Hash of the run's resolved config (`config_hash`): the key a resumed batch matches runs by."""
         return config_hash(self.config)
 
 

@@ -233,6 +233,9 @@ def _parse_cells(path: Path, raw_cells: Any, defaults: dict[str, Any],
 
 
 def parse_vary(raw: Any) -> tuple[tuple[str, float, float], ...]:
+    """An experiment file's [vary] table as ("section.key", low, high) ranges, each checked to be a
+    numeric config key with low <= high; scenario.seed cannot vary.
+    """
     ranges = []
     for section, keys in as_table(raw, "vary").items():
         for key, bounds in as_table(keys, f"vary.{section}").items():
@@ -289,6 +292,7 @@ def check_run_names(config: SimConfig) -> Path | None:
 
 
 def reject_seed(overrides: Mapping[str, Any]) -> None:
+    """Refuse overrides that set scenario.seed: a batch sets it per run from its 'seeds'."""
     scenario = overrides.get("scenario")
     if isinstance(scenario, Mapping) and "seed" in scenario:
         raise ConfigError("scenario.seed is set per run (0 .. seeds-1); set the top-level 'seeds' instead")
@@ -306,6 +310,7 @@ def located(path: Path, where: str) -> Iterator[None]:
 
 
 def as_table(value: Any, name: str) -> dict[str, Any]:
+    """`value` as a dict, or a one-line ConfigError naming `name` when it is not a TOML table."""
     if not isinstance(value, Mapping):
         raise ConfigError(f"'{name}' must be a table of keys, got {value!r}")
     return dict(value)
@@ -320,6 +325,7 @@ def nested(dotted: str, value: Any) -> dict[str, Any]:
 
 
 def deep_merge(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """`extra` laid over `base`, nested tables merged key by key (the later value wins); inputs unchanged."""
     merged = dict(base)
     for key, value in extra.items():
         both_tables = isinstance(value, Mapping) and isinstance(merged.get(key), Mapping)

@@ -108,6 +108,7 @@ class Sweep:
 
     @property
     def name(self) -> str:
+        """The sweep file's stem (e.g. "speed_sweep")."""
         return self.path.stem
 
     @property
@@ -126,6 +127,7 @@ class Sweep:
             yield dict(zip(keys, values))
 
     def config_at(self, point: Mapping[str, Scalar], seed: int) -> SimConfig:
+        """The config of one run: the sweep's base with the grid point's values and scenario.seed = `seed`."""
         overrides: dict[str, Any] = {"scenario": {"seed": seed}}
         for key, value in point.items():
             overrides = deep_merge(overrides, nested(key, value))
@@ -151,6 +153,7 @@ class Sweep:
 
 
 def point_label(point: Mapping[str, Scalar]) -> str:
+    """A grid point as "key=value, key=value", in the grid's key order."""
     return ", ".join(f"{key}={value}" for key, value in point.items())
 
 

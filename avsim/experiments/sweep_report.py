@@ -50,6 +50,7 @@ class SpeedOutcome:
 
     @property
     def safe(self) -> bool:
+        """Whether every run at this speed ran and stopped before the sign (and there was at least one)."""
         return self.runs > 0 and self.failed == 0 and self.stopped == self.runs
 
 
@@ -119,6 +120,7 @@ class Strength:
 
     @property
     def label(self) -> str:
+        """How the report names the sign: the texture, or "method budget_key=budget" for a budget-sweep texture."""
         if self.method is None:
             return self.sign if self.budget is None else "clean"
         return f"{self.method} {self.budget_key}={self.budget:g}" if self.budget is not None else self.sign
@@ -196,6 +198,9 @@ def write_sweep_report(out_dir: Path, sweep, records: Sequence[Mapping[str, Any]
 
 def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], front: Mapping[str, FrontMeasure],
                      records: Sequence[Mapping[str, Any]], manifest: Mapping[str, Any], figure_name: str) -> str:
+    """The sweep's summary.md: runs and time, the safety map (highest safe speed per policy and sign),
+    the attack strengths and the figure `figure_name`.
+    """
     signs = [s.sign for s in strengths]
     lowest = smap.speeds_kmh[0] if smap.speeds_kmh else None
     lines = [

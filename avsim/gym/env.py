@@ -49,7 +49,7 @@ from gymnasium import spaces
 
 from avsim.config import MAX_SEED, SimConfig, check_seed, with_overrides
 from avsim.config_owners import check_read, set_keys
-from avsim.control.policy import BrakeDecision
+from avsim.control.policy_base import BrakeDecision
 from avsim.errors import ConfigError
 from avsim.gym.observation import detections_array, observation_space
 from avsim.gym.reward import reward_terms
@@ -151,10 +151,12 @@ class StopSignEnv(gymnasium.Env):
 
     # ---- Gymnasium API ---------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start an episode (Gymnasium API): the first observation and the info dict (module docstring)."""
         info = self.begin_episode(seed, options)
         return self.observe(self._loop.perceive(self.cameras)), info
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """One control step with `action` (Gymnasium API): observation, reward, terminated, truncated, info."""
         reward, terminated, truncated, info = self.act(action)
         return self.observe(self._loop.perceive(self.cameras)), reward, terminated, truncated, info
 
@@ -231,6 +233,7 @@ class StopSignEnv(gymnasium.Env):
         return image.copy() if image is not None else loop.rig.render_rgb(loop.data, RENDER_CAMERA)
 
     def close(self) -> None:
+        """Release the episode's closed loop (its renderers and perception); the environment can be reset again."""
         self._close_loop()
 
     # ---- one step's parts ----------------------------------------------------------------

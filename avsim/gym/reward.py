@@ -42,9 +42,11 @@ class RewardTerms:
 
     @property
     def total(self) -> float:
+        """The step's reward: the sum of its terms."""
         return self.progress + self.stop_bonus + self.ran_sign + self.comfort
 
     def to_dict(self) -> dict[str, float]:
+        """The terms by name, as `info["reward_terms"]` reports them."""
         return asdict(self)
 
 

@@ -62,6 +62,9 @@ class StopSignVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Any, dict[str, Any]]:
+        """Start an episode in every sub-environment (`seed`: an int gives env i seed + i, a list one
+        seed each); the batched observations and infos.
+        """
         super().reset(seed=seed)
         seeds = _seeds(seed, self.num_envs)
         infos: dict[str, Any] = {}
@@ -71,6 +74,9 @@ class StopSignVectorEnv(VectorEnv):
         return self._observe_all(), infos
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One control step of every sub-environment with its action; a sub-environment whose episode
+        ended on the previous step is reset instead (next-step autoreset).
+        """
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terminated = np.zeros(self.num_envs, dtype=np.bool_)
         truncated = np.zeros(self.num_envs, dtype=np.bool_)
@@ -85,6 +91,7 @@ class StopSignVectorEnv(VectorEnv):
         return self._observe_all(), rewards, terminated, truncated, infos
 
     def close_extras(self, **kwargs: Any) -> None:
+        """Close every sub-environment's closed loop."""
         for env in self.envs:
             env.close()
 

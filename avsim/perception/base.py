@@ -33,6 +33,7 @@ class Detection:
 
     @property
     def height_px(self) -> float:
+        """Box height [px] in the camera image: y1 - y0 of `box_xyxy_px` (what the pinhole range reads)."""
         return self.box_xyxy_px[3] - self.box_xyxy_px[1]
 
 
@@ -71,4 +72,5 @@ class NoPerception(Perception):
     name = "none"
 
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
+        """No detections, whatever the camera sees."""
         return []

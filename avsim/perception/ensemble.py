@@ -103,6 +103,9 @@ class EnsembleDetector:
             raise ValueError(f"k_of_n fusion needs 1 <= votes <= {len(self.members)}, got {votes}")
 
     def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]:
+        """Every member's detections in `image_rgb` (H, W, 3) uint8 RGB, each tagged with its source;
+        fused by vote when `votes` is set, else all of them, most confident first.
+        """
         per_source = {name: [dataclasses.replace(d, source=name) for d in member.detect(image_rgb, camera, region_px=region_px)]
                       for name, member in self.members.items()}
         if self.votes is not None:

@@ -47,7 +47,7 @@ def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
 
     from avsim.perception.coco.bf16 import Bf16CenterNet
     from avsim.perception.coco.model import load_centernet
-    from avsim.perception.coco.runner import CocoRunner
+    from avsim.perception.coco.infer import CocoRunner
 
     torch.set_num_threads(config.threads)
     model = load_centernet()
@@ -62,7 +62,7 @@ def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
 
     from avsim.perception.yolo.bf16 import Bf16Yolo
     from avsim.perception.yolo.model import load_yolo
-    from avsim.perception.yolo.runner import YoloRunner
+    from avsim.perception.yolo.infer import YoloRunner
 
     torch.set_num_threads(config.threads)
     model = load_yolo(config.yolo_cfg or None, config.yolo_weights or None, config.yolo_names or None)
@@ -71,7 +71,7 @@ def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
 
 
 def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
-    from avsim.perception.onnx.runner import OnnxRunner
+    from avsim.perception.onnx.infer import OnnxRunner
 
     return OnnxRunner(config.onnx_path, config.onnx_classes, config.min_confidence, config.threads)
 

@@ -37,7 +37,10 @@ class FrameDetector(Protocol):
     reads; None: all of it) and `detect_many([(image_rgb, camera, region_px), ...]) -> [detections, ...]`
     (each frame's detections exactly as `detect` gives them alone)."""
 
-    def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]: ...
+    def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]:
+        """Detections in `image_rgb` (H, W, 3) uint8 RGB, boxes in its pixels; with `region_px`
+        (x0, y0, x1, y1) only boxes centred inside that region.
+        """
 
 
 # (frame (H, W, 3) uint8, camera name, region of interest or None): one frame for a detector.
@@ -71,6 +74,7 @@ class FramePerception(Perception):
         torch.set_num_threads(threads)
 
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
+        """The detections of `camera`'s frame at the state `data` holds: rendered, noised, detected, range-limited."""
         return self._network(self._frame(rig, data, camera), camera)
 
     def frame_requests(self, rig: CameraRig, data: mujoco.MjData, cameras: tuple[str, ...]) -> list[FrameRequest]:
@@ -82,6 +86,9 @@ class FramePerception(Perception):
         return [d for d in detections if d.height_px >= self.min_box_height_px]
 
     def detect_cameras(self, rig: CameraRig, data: mujoco.MjData, cameras: tuple[str, ...]) -> dict[str, list[Detection]]:
+        """Each camera's detections; with one thread and several cameras, the last camera's network runs
+        here while a worker thread runs the others (the same results as one after another).
+        """
         if self.threads != 1 or len(cameras) < 2:
             return super().detect_cameras(rig, data, cameras)
         if self._worker is None:
@@ -109,6 +116,7 @@ class FramePerception(Perception):
         return self.keep(self.detector.detect(frame, camera, region_px=self.regions_px.get(camera)))
 
     def close(self) -> None:
+        """Stop the worker thread, if one was started."""
         if self._worker is not None:
             self._worker.shutdown()
             self._worker = None

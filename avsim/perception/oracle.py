@@ -24,6 +24,9 @@ class OraclePerception(Perception):
         self._min_box_height_px = min_box_height_px
 
     def detect(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> list[Detection]:
+        """Ground-truth boxes [px] of the signs `camera` sees (from segmentation), confidence 1, those at
+        least `min_box_height_px` tall, tallest first: the oracle mode, not a perception.
+        """
         boxes = rig.sign_boxes(data, camera, self._faces)
         size = rig.intrinsics(camera)
         detections = [

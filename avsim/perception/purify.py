@@ -79,4 +79,5 @@ class PurifiedDetector:
         self.purifier = purifier
 
     def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]:
+        """The inner detector's detections on the purified image (same size, so boxes need no mapping)."""
         return self.inner.detect(self.purifier(image_rgb), camera, region_px=region_px)

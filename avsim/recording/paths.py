@@ -52,4 +52,5 @@ METRIC_FIELDS = (
 
 
 def metric(field: str) -> str:
+    """Rerun entity path of one metric's time series ("metrics/speed_mps")."""
     return f"metrics/{field}"

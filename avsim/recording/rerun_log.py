@@ -105,19 +105,16 @@ class RunRecorder(StepRecorder):
     """
 
     def __init__(self, loop: ClosedLoop, path: str | os.PathLike, *, jpeg_quality: int = DEFAULT_JPEG_QUALITY) -> None:
-        if loop.records:
-            raise ValueError("attach the RunRecorder before the loop's first step")
+        self._check_unstarted(loop)
         if not 0 <= jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [0, 100], got {jpeg_quality}")
-        self._loop = loop
-        self._share_frames(loop)
+        self._attach(loop)
         self._path = Path(path)
         self._jpeg_quality = jpeg_quality
-        self.cameras: tuple[str, ...] = ("front", *(c for c in loop.policy.cameras if c != "front"))
+        self.cameras = self.recorded_cameras(loop)
         self._car_body = loop.model.body(CAR_PREFIX + "car").id
         self._frames: list[_Frame] = []  # one per step, captured at its sensing time
         self._records: list[StepRecord] = []
-        self._closed = False
 
         self._rec = rr.RecordingStream(APPLICATION_ID)
         # The file's temporary name is taken now, so an unwritable place fails before the run;
@@ -137,13 +134,10 @@ class RunRecorder(StepRecorder):
             raise
 
     # ---- per step --------------------------------------------------------------------
-    def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
-        """Keep `record` with the frame captured at its sensing time; `loop.run(on_step=...)` hook."""
-        frame = self._frame_for(loop, record)
+    def _step(self, frame: _Frame, record: StepRecord) -> None:
+        """Keep `record` with the frame captured at its sensing time; called by `StepRecorder.on_step`."""
         self._frames.append(frame)
         self._records.append(record)
-        # The state now is the next step's sensing state (see the module docstring).
-        self._pending = self._capture()
 
     def _finish(self) -> None:
         """Send the steps and the final state, and write the file to `path` through its temporary

@@ -83,14 +83,17 @@ _OTHER_RGBA = (1.0, 0.78, 0.0, 1.0)
 
 
 def image_topic(camera: str) -> str:
+    """Topic of a camera's sensor_msgs/CompressedImage ("/camera/front/image/compressed")."""
     return f"/camera/{camera}/image/compressed"
 
 
 def camera_info_topic(camera: str) -> str:
+    """Topic of a camera's sensor_msgs/CameraInfo."""
     return f"/camera/{camera}/camera_info"
 
 
 def marker_topic(camera: str) -> str:
+    """Topic of a camera's detection boxes as one visualization_msgs/ImageMarker (a LINE_LIST)."""
     return f"/camera/{camera}/detections/marker"
 
 
@@ -114,8 +117,7 @@ class BagRecorder(StepRecorder):
 
     def __init__(self, loop: ClosedLoop, path: str | os.PathLike, *, image_format: str = "png",
                  jpeg_quality: int = DEFAULT_JPEG_QUALITY) -> None:
-        if loop.records:
-            raise ValueError("attach the BagRecorder before the loop's first step")
+        self._check_unstarted(loop)
         if image_format not in IMAGE_FORMATS:
             raise ConfigError(f"image format must be one of {', '.join(IMAGE_FORMATS)}, got '{image_format}'")
         self._path = Path(path)
@@ -127,17 +129,15 @@ class BagRecorder(StepRecorder):
 
         self._store = ros_types.typestore()
         self._types = self._store.types
-        self._loop = loop
-        self._share_frames(loop)
+        self._attach(loop)
         self._format = image_format
         self._encode_params = [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality] if image_format == "jpeg" else []
-        self.cameras: tuple[str, ...] = ("front", *(c for c in loop.policy.cameras if c != "front"))
+        self.cameras = self.recorded_cameras(loop)
         free = loop.model.joint(CAR_PREFIX + "car_free")
         self._qpos, self._qvel = int(free.qposadr[0]), int(free.dofadr[0])
         self._cruise_mps = loop.config.scenario.speed_kmh / 3.6
         self._result: RunResult | None = None
         self._braked = False
-        self._closed = False
         self._path.parent.mkdir(parents=True, exist_ok=True)
         # rosbags writes a bag folder; it is made beside `path` (one file system, so the move is atomic).
         self._tmp_dir = self._path.with_name(f".{self._path.name}.{os.getpid()}.{secrets.token_hex(6)}.bag")
@@ -155,11 +155,9 @@ class BagRecorder(StepRecorder):
             raise
 
     # ---- per step --------------------------------------------------------------------
-    def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
-        """Write `record` with the frame captured at its sensing time; `loop.run(on_step=...)` hook."""
-        frame = self._frame_for(loop, record)
+    def _step(self, frame: _Frame, record: StepRecord) -> None:
+        """Write `record` with the frame captured at its sensing time; called by `StepRecorder.on_step`."""
         self._write_step(frame, record)
-        self._pending = self._capture()
 
     def set_result(self, result: RunResult) -> None:
         """The run's result, written to /avsim/run with the config when the bag is closed."""

@@ -78,6 +78,9 @@ def camera_of(topic: str) -> str:
 
 
 def detection_json(detection: Detection) -> dict[str, Any]:
+    """A detection as `avsim detect` and `avsim replay` print it: class, confidence, box_xyxy_px
+    [image px] and, from an ensemble, source.
+    """
     return {"class": detection.class_name, "confidence": detection.confidence, "box_xyxy_px": list(detection.box_xyxy_px),
             **({"source": detection.source} if detection.source else {})}
 

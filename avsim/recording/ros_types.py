@@ -33,10 +33,12 @@ MAP_FRAME, ODOM_FRAME, BASE_FRAME = "map", "odom", "base_link"
 
 
 def camera_link(camera: str) -> str:
+    """TF frame of a camera's mount on the car ("front_camera_link"): x forward, y left, z up."""
     return f"{camera}_camera_link"
 
 
 def optical_frame(camera: str) -> str:
+    """TF frame of a camera's image ("front_camera_optical_frame"): x right, y down, z forward (REP 103)."""
     return f"{camera}_camera_optical_frame"
 
 
@@ -73,8 +75,10 @@ def stamp(time_s: float) -> Any:
 
 
 def time_ns(time_s: float) -> int:
+    """Simulated time [s] as integer nanoseconds, the bag's message timestamps."""
     return round(time_s * 1e9)
 
 
 def header(time_s: float, frame_id: str) -> Any:
+    """A std_msgs/Header stamped at simulated `time_s` [s] in `frame_id`."""
     return typestore().types["std_msgs/msg/Header"](stamp=stamp(time_s), frame_id=frame_id)

@@ -24,18 +24,49 @@ class _Timed(Protocol):
 
 
 class StepRecorder:
-    """Base of the recorders; a subclass sets `_loop`, `_closed` and `_pending` (a frame with
-    `time_s`) and defines `close()` and `abort()`."""
+    """Base of the recorders. A subclass's `__init__` calls `_check_unstarted` first and `_attach`
+    once its own arguments are checked, then captures the first state into `_pending`; it defines
+    `_capture` (the state now, as a frame with `time_s`), `_step` (what one step writes), `_finish`
+    and `_discard`. The base's `on_step`, `close` and `abort` do the rest."""
 
     _loop: ClosedLoop
     _closed: bool
     _pending: Any
+
+    def _check_unstarted(self, loop: ClosedLoop) -> None:
+        """Refuse a loop that has stepped already: its first sensing state is gone."""
+        if loop.records:
+            raise ValueError(f"attach the {type(self).__name__} before the loop's first step")
+
+    def _attach(self, loop: ClosedLoop) -> None:
+        """Record `loop` from now on, its camera renders shared with the perception (`_share_frames`)."""
+        self._loop = loop
+        self._share_frames(loop)
+        self._closed = False
 
     @staticmethod
     def _share_frames(loop: ClosedLoop) -> None:
         """Let the recorder's render of each sensing state and the perception's share one draw
         (`CameraRig.render_rgb`): in a closed-loop run nothing changes the model's appearance."""
         loop.rig.reuse_last_frame = True
+
+    @staticmethod
+    def recorded_cameras(loop: ClosedLoop) -> tuple[str, ...]:
+        """The cameras a recording shows: "front" always, then those the policy reads ("side")."""
+        return ("front", *(c for c in loop.policy.cameras if c != "front"))
+
+    def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
+        """`loop.run(on_step=...)` hook: write `record` with the frame captured at its sensing time
+        (`_step`), then capture the state now, which is the next step's sensing state."""
+        frame = self._frame_for(loop, record)
+        self._step(frame, record)
+        self._pending = self._capture()
+
+    def _capture(self) -> _Timed:
+        raise NotImplementedError
+
+    def _step(self, frame: Any, record: StepRecord) -> None:
+        raise NotImplementedError
 
     def _frame_for(self, loop: ClosedLoop, record: StepRecord) -> _Timed:
         """The pending frame, checked to be of `record`'s sensing time in the recorder's own loop."""

@@ -107,17 +107,14 @@ class VideoRecorder(StepRecorder):
     """Writes the front camera of one `ClosedLoop` run to `path` (.mp4); attach before the first step."""
 
     def __init__(self, loop: ClosedLoop, path: str | os.PathLike) -> None:
-        if loop.records:
-            raise ValueError("attach the VideoRecorder before the loop's first step")
-        self._loop = loop
-        self._share_frames(loop)
+        self._check_unstarted(loop)
+        self._attach(loop)
         self._path = Path(path)
         if self._path.suffix.lower() != ".mp4":
             raise ConfigError(f"--mp4 expects a path ending in .mp4, got '{self._path}'")
         self._conf_threshold = loop.config.policy.conf_threshold
         self._last_brake = 0.0
         self.frames_written = 0
-        self._closed = False
         intrinsics = loop.rig.intrinsics(CAMERA)
         self._size_px = (intrinsics.width_px, intrinsics.height_px)
         fps = 1.0 / loop.config.loop.control_dt_s
@@ -137,14 +134,11 @@ class VideoRecorder(StepRecorder):
             self.abort()
             raise
 
-    def on_step(self, loop: ClosedLoop, record: StepRecord) -> None:
-        """Write the frame captured at `record`'s sensing time, annotated; `loop.run(on_step=...)` hook."""
-        frame = self._frame_for(loop, record)
+    def _step(self, frame: _Frame, record: StepRecord) -> None:
+        """Write the frame captured at `record`'s sensing time, annotated; called by `StepRecorder.on_step`."""
         detections = tuple(d for d in record.detections if d.camera == CAMERA)
         self._write(frame, detections, record.brake)
         self._last_brake = record.brake
-        # The state now is the next step's sensing state (see the module docstring).
-        self._pending = self._capture()
 
     def _finish(self) -> None:
         """Write the final state's frame, finish the file and move it to `path`; called by `StepRecorder.close`."""

@@ -39,6 +39,7 @@ class Intrinsics:
 
     @property
     def principal_point_px(self) -> tuple[float, float]:
+        """(cx, cy) [px]: the image centre, in continuous pixel coordinates."""
         return self.width_px / 2, self.height_px / 2
 
     def matrix(self) -> np.ndarray:
@@ -48,10 +49,12 @@ class Intrinsics:
 
     @property
     def fovx_deg(self) -> float:
+        """Horizontal field of view [deg], from the width and the focal length (MuJoCo's fovy is vertical)."""
         return math.degrees(2 * math.atan(self.width_px / 2 / self.f_px))
 
 
 def intrinsics_for(camera: str, config: CameraConfig) -> Intrinsics:
+    """The intrinsics of camera "front" or "side" under `config` (the side camera has its own fovy)."""
     fovy = config.fovy_deg if camera == "front" else config.side_fovy_deg
     return Intrinsics(config.width_px, config.height_px, fovy)
 
@@ -105,9 +108,11 @@ class CameraRig:
         self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
 
     def intrinsics(self, camera: str) -> Intrinsics:
+        """The intrinsics of `camera` ("front" or "side")."""
         return intrinsics_for(camera, self._config)
 
     def pose(self, data: mujoco.MjData, camera: str) -> CameraPose:
+        """`camera`'s pose in the world at the state `data` holds (MuJoCo camera axes, see `CameraPose`)."""
         cid = self._ids[camera]
         return CameraPose(data.cam_xpos[cid].copy(), data.cam_xmat[cid].reshape(3, 3).copy())
 
@@ -210,6 +215,7 @@ class CameraRig:
         return (x0, y0, x1, y1) if x0 < x1 and y0 < y1 else None
 
     def close(self) -> None:
+        """Free the offscreen renderers and the cached frames; the rig renders nothing afterwards."""
         for renderer in (self._rgb, self._seg):
             if renderer is not None:
                 renderer.close()

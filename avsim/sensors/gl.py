@@ -75,6 +75,7 @@ class OffscreenRenderer:
 
     @property
     def scene_geom_count(self) -> int:
+        """Geoms in the last rendered scene (what a render has to draw)."""
         return self._scene.ngeom
 
     def segment_ids_of(self, geom_ids: list[int]) -> list[int]:
@@ -98,6 +99,7 @@ class OffscreenRenderer:
     def close(self) -> None:
         # GL object names belong to a context: freeing ours while another renderer's context is
         # current would delete *its* textures and buffers (seen with many cars in one process).
+        """Free the renderer's GL context and MuJoCo rendering context."""
         self._gl.make_current()
         self._con.free()
         self._gl.free()

@@ -120,6 +120,9 @@ PROG = "python -m avsim.vehicle.brake_test"
 
 
 def main(argv: list[str] | None = None) -> int:
+    """`python -m avsim.vehicle.brake_test`: print the car's full-brake stops from `--speed-kmh` on each
+    road surface, with and without ABS; returns the exit status.
+    """
     parser = OneLineArgumentParser(prog=PROG, description="Full-brake stops of the avsim car on dry, wet and snowy roads.")
     # The closed loop's speed range (scenario.speed_kmh): NaN, 0 or a negative speed is no brake test.
     parser.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), default=85.0)

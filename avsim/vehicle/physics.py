@@ -125,6 +125,7 @@ class Vehicle:
         return self.data.qpos[self._qpos: self._qpos + 2].copy()
 
     def yaw_rad(self) -> float:
+        """Heading of the body x axis about world +z [rad]; 0 along the road (+x), positive to the left."""
         w, x, y, z = self.data.qpos[self._qpos + 3: self._qpos + 7]
         return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
@@ -148,6 +149,7 @@ class Vehicle:
         return float(v[self._qvel] * math.cos(yaw) + v[self._qvel + 1] * math.sin(yaw))
 
     def lateral_speed_mps(self) -> float:
+        """Sideways speed of the body origin, perpendicular to the heading [m/s], positive to the left."""
         yaw = self.yaw_rad()
         v = self.data.qvel
         return float(-v[self._qvel] * math.sin(yaw) + v[self._qvel + 1] * math.cos(yaw))
@@ -169,10 +171,12 @@ class Vehicle:
         return self._brake_applied_nm.copy()
 
     def front_bumper_xy_m(self) -> np.ndarray:
+        """Front bumper's centre in the world, (2,) [m]: `FRONT_BUMPER_X_M` ahead of the body origin along the heading."""
         yaw = self.yaw_rad()
         return self.position_xy_m() + FRONT_BUMPER_X_M * np.array([math.cos(yaw), math.sin(yaw)])
 
     def is_finite(self) -> bool:
+        """False once any position or velocity has become NaN or infinite (the physics diverged)."""
         return bool(np.isfinite(self.data.qpos).all() and np.isfinite(self.data.qvel).all())
 
     # ---- actuation ------------------------------------------------------------------

@@ -87,6 +87,9 @@ def add_ground(spec: mujoco.MjSpec, material: str) -> None:
 
 
 def add_building(spec: mujoco.MjSpec, name: str, x: float, y: float, size_xy: tuple[float, float], height: float, facade: str) -> None:
+    """A building: a box of footprint `size_xy` [m] centred at (x, y) [m, world], `height` [m] tall, in
+    the `facade` material, with a roof slab a little wider.
+    """
     _geom(spec, name, BOX, (x, y, height / 2), (size_xy[0] / 2, size_xy[1] / 2, height / 2), facade)
     _geom(spec, f"{name}/roof", BOX, (x, y, height + 0.3), (size_xy[0] / 2 + 0.2, size_xy[1] / 2 + 0.2, 0.3), "roof_grey")
 
@@ -110,11 +113,13 @@ def add_building_row(spec: mujoco.MjSpec, name: str, rng: np.random.Generator, x
 
 
 def add_tree(spec: mujoco.MjSpec, name: str, x: float, y: float, height: float) -> None:
+    """A tree at (x, y) [m, world], `height` [m] tall: a trunk and an ellipsoid crown."""
     _geom(spec, f"{name}/trunk", CYL, (x, y, height * 0.3), (0.18, height * 0.3), "bark")
     _geom(spec, f"{name}/crown", ELLIPSOID, (x, y, height * 0.7), (height * 0.25, height * 0.25, height * 0.33), "leaves")
 
 
 def add_barn(spec: mujoco.MjSpec, name: str, x: float, y: float, yaw_rad: float) -> None:
+    """A red barn at (x, y) [m, world], its long axis at `yaw_rad` from +x, with a gable roof."""
     quat = _yaw_quat(yaw_rad)
     _geom(spec, name, BOX, (x, y, 3.0), (9.0, 6.0, 3.0), "barn_red", quat=quat)
     # Gable roof: two slabs pitched at 35 degrees about the barn's long axis.
@@ -130,10 +135,12 @@ def add_barn(spec: mujoco.MjSpec, name: str, x: float, y: float, yaw_rad: float)
 
 
 def add_field(spec: mujoco.MjSpec, name: str, x: float, y: float, size_xy: tuple[float, float], material: str) -> None:
+    """A flat field of footprint `size_xy` [m] centred at (x, y) [m, world], just above the visual ground."""
     _geom(spec, name, BOX, (x, y, -0.04), (size_xy[0] / 2, size_xy[1] / 2, 0.01), material)
 
 
 def add_parked_car(spec: mujoco.MjSpec, name: str, x: float, y: float, yaw_rad: float, paint: tuple[float, float, float]) -> None:
+    """A parked car at (x, y) [m, world] heading `yaw_rad`, body in `paint` (RGB in [0, 1]), with a cabin and wheels."""
     quat = _yaw_quat(yaw_rad)
     c, s = math.cos(yaw_rad), math.sin(yaw_rad)
     _geom(spec, name, BOX, (x, y, 0.65), (2.3, 0.9, 0.35), rgba=(*paint, 1), quat=quat)
@@ -153,15 +160,18 @@ def _cyl_quat_lateral(yaw_rad: float) -> list[float]:
 
 
 def add_lamp_post(spec: mujoco.MjSpec, name: str, x: float, y: float, arm_dir: float) -> None:
+    """A street lamp at (x, y) [m, world], 8 m tall, its arm reaching towards `arm_dir` (+1 left, -1 right)."""
     _geom(spec, name, CYL, (x, y, 4.0), (0.08, 4.0), "dark_metal")
     _geom(spec, f"{name}/arm", BOX, (x, y + arm_dir * 0.9, 7.9), (0.1, 0.9, 0.06), "dark_metal")
 
 
 def add_bin(spec: mujoco.MjSpec, name: str, x: float, y: float) -> None:
+    """A litter bin (1 m tall cylinder) at (x, y) [m, world]."""
     _geom(spec, name, CYL, (x, y, 0.5), (0.3, 0.5), "dark_metal")
 
 
 def add_bollard(spec: mujoco.MjSpec, name: str, x: float, y: float) -> None:
+    """A bollard (0.9 m tall post) at (x, y) [m, world]."""
     _geom(spec, name, CYL, (x, y, 0.45), (0.1, 0.45), "metal")
 
 

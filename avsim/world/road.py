@@ -44,6 +44,7 @@ class RoadLayout:
 
     @property
     def lane_center_y_m(self) -> float:
+        """Lateral position of the ego lane's centre line, world y [m] (negative: traffic keeps right)."""
         return self.lane_edge_y_m + self.lane_width_m / 2
 
     @property

@@ -77,14 +77,17 @@ class PlacedSign:
 
     @property
     def shape(self) -> SignShape:
+        """The face outline of this kind of sign (`SIGN_SHAPES`, MUTCD sizes)."""
         return SIGN_SHAPES[self.kind]
 
     @property
     def face_geom(self) -> str:
+        """Name of the MuJoCo geom that carries the sign's face texture."""
         return f"{self.name}/face"
 
     @property
     def texture_name(self) -> str:
+        """Name of the MuJoCo texture drawn on the face (swapped for an attacked one)."""
         return f"{self.name}/texture"
 
     @property

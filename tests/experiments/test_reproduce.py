@@ -92,7 +92,7 @@ def test_a_bad_experiment_file_fails_in_one_line_before_anything_is_written(tmp_
 
 
 def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tmp_path):
-    from avsim.experiments.report import Cells, findings
+    from avsim.experiments.reproduce_report import Cells, findings
     from avsim.experiments.spec import load_experiment
 
     path = tmp_path / "table3_stop_positions.toml"
@@ -114,7 +114,7 @@ def test_findings_name_a_defence_that_ran_past_and_the_deceleration_it_needed(tm
 
 
 def test_findings_do_not_count_a_run_that_had_no_stop_to_make_as_a_failure(tmp_path):
-    from avsim.experiments.report import Cells, findings
+    from avsim.experiments.reproduce_report import Cells, findings
     from avsim.experiments.spec import load_experiment
 
     path = tmp_path / "table3_stop_positions.toml"
@@ -183,7 +183,7 @@ def test_a_reproduce_where_every_run_failed_says_so_and_exits_non_zero(tmp_path,
 
 
 def test_failed_runs_are_counted_beside_the_outcomes_of_the_others(tmp_path):
-    from avsim.experiments.report import Cells, findings
+    from avsim.experiments.reproduce_report import Cells, findings
     from avsim.experiments.spec import load_experiment
 
     path = tmp_path / "table3_stop_positions.toml"

@@ -9,7 +9,7 @@ k is the same for every texture and detector, so textures compare in pairs.
 
 Per frame: the confidence of the detection matching the sign (IoU >= 0.3 with its ground-truth
 box; 0 if none), that box's height, and the braking policy's pinhole estimate of the distance to
-the stop line from it (`avsim.control.policy`). From these:
+the stop line from it (`avsim.control.policy_base`). From these:
 - the disappearance rate (Armory's term; RP2's "% of frames where the sign is missed"): the
   share of frames with no matching detection at or above the braking threshold, per 5-m bin;
 - the first confident detection of each drive, at any range and inside the braking gate (the
@@ -67,6 +67,7 @@ class DriveBys:
 
     @property
     def drives(self) -> list[int]:
+        """The drive indices that have frames, ascending."""
         return sorted({f.drive for f in self.frames})
 
     def detected(self, frame: Frame, gated: bool = False) -> bool:
@@ -76,10 +77,12 @@ class DriveBys:
         return not gated or self.trigger_dist_m is None or (frame.estimate_m is not None and frame.estimate_m <= self.trigger_dist_m)
 
     def bins(self, bin_m: float = BIN_M) -> list[tuple[float, float]]:
+        """Distance bins (lo, hi) [m] of width `bin_m` from below `NEAR_M` to `FAR_M`, near to far."""
         edges = np.arange(math.floor(NEAR_M / bin_m) * bin_m, FAR_M + bin_m, bin_m)
         return [(float(lo), float(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
 
     def in_range(self, lo_m: float, hi_m: float) -> list[Frame]:
+        """The frames whose bumper-to-sign distance is in [lo_m, hi_m) [m]."""
         return [f for f in self.frames if lo_m <= f.dist_m < hi_m]
 
     def disappearance(self, lo_m: float, hi_m: float) -> tuple[int, int, float, tuple[float, float]]:
@@ -95,6 +98,7 @@ class DriveBys:
         return max(hits) if hits else None
 
     def mean_confidence(self, lo_m: float, hi_m: float) -> float:
+        """Mean confidence of the sign's detection (0 where missed) over the frames in [lo_m, hi_m); NaN if none."""
         frames = self.in_range(lo_m, hi_m)
         return float(np.mean([f.confidence for f in frames])) if frames else float("nan")
 

@@ -157,4 +157,5 @@ def source_of(budget: Mapping[str, object]) -> str:
 
 
 def frames_summary(results: Sequence[DriveBys]) -> str:
+    """One line saying how many frames the drive-by sets hold, for the report's introduction."""
     return f"{sum(len(r.frames) for r in results)} frames in {len(results)} texture x detector drive-by sets"

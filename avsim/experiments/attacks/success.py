@@ -38,6 +38,7 @@ class Success:
 
 
 def is_success(result: Mapping[str, Any]) -> bool:
+    """Whether a run's result is an attack success: the car ended past the sign (`SUCCESS_OUTCOMES`)."""
     return result["outcome"] in SUCCESS_OUTCOMES
 
 

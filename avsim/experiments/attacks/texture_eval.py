@@ -52,6 +52,7 @@ class TextureReport:
     drive_by: dict[str, dict[str, list[tuple[float, float]]]] = field(default_factory=dict)  # (dist, conf) pairs
 
     def mean_conf(self, camera: str = "front") -> float:
+        """Mean stop-sign confidence of `camera` over every placement and fixed distance (NaNs skipped)."""
         values = [c for per_dist in self.conf_at_m[camera].values() for c in per_dist.values()]
         return float(np.nanmean(values))
 

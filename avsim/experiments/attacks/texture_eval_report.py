@@ -21,6 +21,9 @@ def budget_of(sign: str, texture_dir: Path) -> dict:
 
 
 def plot_drive_by(reports: list[TextureReport], placement: str, out_path: Path) -> Path:
+    """Plot each texture's drive-by confidence against distance [m] at `placement`, front and side
+    camera side by side, to `out_path` (PNG); returns the path.
+    """
     import matplotlib
 
     matplotlib.use("Agg")

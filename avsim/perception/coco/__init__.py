@@ -13,7 +13,7 @@ the graph itself, with no TensorFlow, ONNX or Node at run time:
   model       network + decoding, loaded from the cache
   labels      COCO-80 names; class 11, "stop sign", is avsim's `stop_sign`
   preprocess  `perception.coco_input`: resize / crop / upscale, and boxes back to the image
-  runner      camera frame -> list[Detection]
+  infer       camera frame -> list[Detection]
   realism     recall against distance and false stop signs on `avsim detector make-data` renders
 
 The port matches the TF.js runtime (Node, pure-JS CPU backend) to 0.003 px and 2e-6 in

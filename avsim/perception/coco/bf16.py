@@ -49,6 +49,7 @@ class Float32Island(nn.Module):
         self.module = module
 
     def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
+        """Run the wrapped module in float32 on the bfloat16 inputs; the output back in bfloat16."""
         return self.module(*(x.float() for x in inputs)).to(torch.bfloat16)
 
 

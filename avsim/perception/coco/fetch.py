@@ -90,6 +90,7 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
 
 
 def main() -> int:
+    """`python -m avsim.perception.coco.fetch`: fetch and check the COCO CenterNet's files; returns the exit status."""
     try:
         json_path, bin_path = fetch()
     except CocoWeightsError as exc:

@@ -48,6 +48,7 @@ class TfjsGraph:
     input_shapes: dict[str, tuple[int, ...]]
 
     def node(self, name: str) -> GraphNode:
+        """The graph node called `name` (KeyError if there is none)."""
         for node in self.nodes:
             if node.name == name:
                 return node
@@ -81,6 +82,7 @@ def _attr_value(value: dict[str, Any]) -> Any:
 
 
 def node_attrs(raw: dict[str, Any]) -> dict[str, Any]:
+    """A node's raw TF.js attributes as plain Python values (ints, floats, strings, lists)."""
     return {key: _attr_value(value) for key, value in raw.items()}
 
 

@@ -32,6 +32,7 @@ class CocoCenterNet(nn.Module):
         self.spec = spec
 
     def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(B, 3, H, W) RGB 0-255 -> heatmap (B, 80, H/4, W/4) after the sigmoid, wh (B, 4, H/4, W/4) [input px]."""
         return self.network(images)
 
     def maps(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -116,6 +116,10 @@ class CenterNet(nn.Module):
 
     @classmethod
     def from_graph(cls, graph: TfjsGraph) -> "CenterNet":
+        """The network that computes the graph's heatmap and wh outputs from its input placeholder, each
+        graph node a module (activations folded into their convolutions); unsupported graphs raise
+        `UnsupportedGraphError`.
+        """
         order = _ancestors(graph, (HEATMAP_NAME, WH_NAME))
         if not order or order[0].name != INPUT_NAME:
             raise UnsupportedGraphError(f"the outputs do not start at the input placeholder {INPUT_NAME}")
@@ -137,6 +141,7 @@ class CenterNet(nn.Module):
 
     @classmethod
     def from_files(cls, json_path: Path) -> "CenterNet":
+        """The network of the TF.js model.json at `json_path` (weights beside it), in eval mode."""
         return cls.from_graph(read_graph(json_path)).eval()
 
     def producer_index(self, name: str) -> int:

@@ -11,11 +11,10 @@ Modules, one job each:
   augment      box-exact photometric and scale-jitter augmentation
   data         the JSONL dataset and its collate function
   ema          exponential moving average of weights
-  evaluate     mAP@0.5 on a dataset
+  map50        mAP@0.5 on a dataset (the validation metric of training)
   weights      checkpoint save (atomic) and weights-only load, `WeightsError`
   train        the training loop and its CLI (`python -m avsim.perception.detector.train`)
   infer        `SignDetectorRunner`: image -> list[Detection]
-  bench_latency  `python -m avsim.perception.detector.bench_latency`
 
 Frames: "image" pixels are the camera image's continuous pixel coordinates (pixel i
 covers [i, i+1)); "input" pixels are the same in the letterboxed network input.

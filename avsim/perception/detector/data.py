@@ -45,6 +45,9 @@ class Record:
 
 
 def parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, ...]) -> Record:
+    """One JSONL line of a dataset (`where` names it in errors) as a `Record`: the image path under
+    `data_dir`, the boxes (N, 4) xyxy [image px] and their class indices into `class_names`.
+    """
     try:
         obj = json.loads(line)
         image, boxes, classes = obj["image"], obj["boxes"], obj["classes"]
@@ -133,6 +136,7 @@ class SignDataset(Dataset):
         self.epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
+        """Set the epoch the augmentations are drawn for (each sample's randomness is seeded by seed, epoch, index)."""
         self.epoch = int(epoch)
 
     def __len__(self) -> int:

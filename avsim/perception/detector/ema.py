@@ -26,10 +26,12 @@ class ModelEMA:
         self.updates = 0
 
     def current_decay(self) -> float:
+        """The decay of the next update: `decay` ramped up from 0 over the first `ramp_updates` updates."""
         return self.decay * (1.0 - math.exp(-self.updates / self.ramp_updates))
 
     @torch.no_grad()
     def update(self, model: nn.Module) -> None:
+        """Move the averaged weights towards `model`'s by the current decay (buffers that are not floats are copied)."""
         self.updates += 1
         d = self.current_decay()
         source = model.state_dict()
@@ -40,8 +42,10 @@ class ModelEMA:
                 value.copy_(source[name])
 
     def state_dict(self) -> dict:
+        """The averaged model's weights and the update count, for a checkpoint."""
         return {"model": self.model.state_dict(), "updates": self.updates}
 
     def load_state_dict(self, state: dict) -> None:
+        """Restore what `state_dict` returned."""
         self.model.load_state_dict(state["model"])
         self.updates = int(state["updates"])

@@ -43,6 +43,9 @@ class YoloLayout(nn.Module):
         self.register_buffer("strides", torch.cat(strides).reshape(1, 1, -1))  # (1, 1, N)
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
+        """(1, 3, H_in, W_in) RGB in [0, 1] -> (1, 4 + C, N): per cell cx, cy, w, h [input px] and the C
+        class scores (objectness x class probability), N cells over both strides.
+        """
         preds = torch.cat([out.flatten(2) for out in self.detector(images)], dim=2)  # (B, 1 + C + 4, N)
         num_classes = self.detector.num_classes
         raw = preds[:, 1 + num_classes:]

@@ -57,6 +57,7 @@ class ConvBNAct(nn.Module):
         self.act: nn.Module = make_activation(act) if act else nn.Identity()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, c_in, H, W) -> (B, c_out, H / stride, W / stride): conv, batch norm, activation."""
         return self.act(self.bn(self.conv(x)))
 
     def fuse(self) -> None:
@@ -76,6 +77,7 @@ class Bottleneck(nn.Module):
         self.cv2 = ConvBNAct(hidden, c, 3, act=act)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, c, H, W) -> (B, c, H, W): x plus the two-conv residual branch."""
         return x + self.cv2(self.cv1(x))
 
 

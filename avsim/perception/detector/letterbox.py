@@ -46,6 +46,7 @@ class Letterbox:
         return (boxes - np.array([self.pad_x, self.pad_y, self.pad_x, self.pad_y])) / self.scale
 
     def is_identity(self, image_w: int, image_h: int) -> bool:
+        """True when an image_w x image_h image is the network input as it is (no scaling, no padding)."""
         return self.scale == 1.0 and self.pad_x == 0 and self.pad_y == 0 and (self.in_w, self.in_h) == (image_w, image_h)
 
 

@@ -20,7 +20,7 @@ and a ReLU-family activation (SiLU costs ~4x a ReLU per element here).
 build_detector() defaults: 0.455 M params (1.8 MB fp32), 1.47 GFLOPs (0.74 GMACs) at 640x480.
 Measured on this machine (2-core AMD EPYC VM, torch 2.13 CPU, fused, channels_last,
 inference_mode; median of 100 frames after warm-up, nothing else running,
-`python -m avsim.perception.detector.bench_latency`): letterbox 0.2 ms + forward 17.3 ms +
+`python -m avsim.bench.detector_latency`): letterbox 0.2 ms + forward 17.3 ms +
 decode/NMS 0.8 ms = 18.4 ms per frame at 1 thread, and 11.4 ms at 2 threads. The forward
 runs at about 85 GFLOP/s on one core, most of what the core's FMA units can do, so the net
 itself has little left to give: the closed loop runs it on a region of interest instead
@@ -63,6 +63,7 @@ class Backbone(nn.Module):
         return nn.Sequential(ConvBNAct(c_in, c_out, 3, 2, act=act), *(Bottleneck(c_out, 0.5, act) for _ in range(depth)))
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(B, 3, H, W) -> (C3, C4, C5) at strides 8, 16 and 32 (class docstring)."""
         c3 = self.stage3(self.stem(x))
         c4 = self.stage4(c3)
         return c3, c4, self.stage5(c4)
@@ -80,6 +81,7 @@ class Neck(nn.Module):
         self.up = nn.Upsample(scale_factor=2.0, mode="nearest")
 
     def forward(self, c3: torch.Tensor, c4: torch.Tensor, c5: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(C3, C4, C5) -> (P3, P4): the coarser map upsampled x2 and fused into the finer, twice."""
         p4 = self.fuse4(torch.cat([self.up(self.lateral5(c5)), c4], dim=1))
         p3 = self.fuse3(torch.cat([self.up(self.lateral4(p4)), c3], dim=1))
         return p3, p4
@@ -106,6 +108,7 @@ class Head(nn.Module):
             self.reg_pred.bias.copy_(torch.tensor([prior_logit, 0.0, 0.0, INIT_LOG_SIZE, INIT_LOG_SIZE]))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, c_in, h, w) -> (B, 1 + num_classes + 4, h, w): objectness logit, class logits, box."""
         reg = self.reg_pred(self.reg_conv(x))
         return torch.cat([reg[:, :1], self.cls_pred(self.cls_conv(x)), reg[:, 1:]], dim=1)
 

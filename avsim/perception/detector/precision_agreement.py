@@ -64,6 +64,9 @@ def format_agreement(reports: dict[str, EvalReport]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """`python -m avsim.perception.detector.precision_agreement`: score the detector in fp32 and in
+    bf16 on the same held-out frames and print where they differ; returns the exit status.
+    """
     parser = argparse.ArgumentParser(prog="python -m avsim.perception.detector.precision_agreement", description=__doc__.split("\n")[0])
     parser.add_argument("--data", default="data/signs", help="dataset directory (`avsim detector make-data`)")
     parser.add_argument("--split", choices=("val", "train"), default="val")

@@ -39,7 +39,7 @@ from avsim.perception.detector.device import check_device
 from avsim.perception.detector.ema import ModelEMA
 from avsim.perception.ap import mean_ap
 from avsim.perception.detector.train_args import add_train_arguments
-from avsim.perception.detector.evaluate import evaluate_map50
+from avsim.perception.detector.map50 import evaluate_map50
 from avsim.perception.detector.loss import LossWeights, compute_loss
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE, build_detector
 from avsim.perception.detector.weights import load_checkpoint, save_checkpoint
@@ -193,6 +193,9 @@ def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_siz
 
 
 def run_from_args(args: argparse.Namespace) -> int:
+    """Train as `avsim detector train`'s parsed `args` ask (input size, device and data checked first);
+    returns the exit status. Ctrl-C says where the last finished epoch is.
+    """
     if args.input_size is None:
         args.input_size = f"{DEPLOY_INPUT_SIZE[0]}x{DEPLOY_INPUT_SIZE[1]}"
     width, sep, height = str(args.input_size).lower().partition("x")
@@ -212,6 +215,7 @@ def run_from_args(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """`python -m avsim.perception.detector.train`: `avsim detector train` with its own error boundary."""
     prog = "python -m avsim.perception.detector.train"
     parser = OneLineArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     add_train_arguments(parser)

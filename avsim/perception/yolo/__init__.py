@@ -14,7 +14,7 @@ DNN or ONNX at run time; a user's own YOLOv3/v4-tiny style cfg and weights load 
   nms         class-aware greedy NMS in torch
   model       network + decoding, loaded from the files; bf16: its bfloat16 copy
   preprocess  `perception.yolo_input`: resize / crop / upscale
-  runner      camera frame -> list[Detection]
+  infer       camera frame -> list[Detection]
 
 The reader matches OpenCV 4's Darknet importer to 0.004 px and 2e-5 in score on avsim renders
 (`tests/perception/yolo/test_yolo_reference.py`; docs/yolo.md).

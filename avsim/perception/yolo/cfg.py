@@ -32,6 +32,7 @@ class Section:
         return f"{self.source}: [{self.kind}] at line {self.line}, key {key!r}"
 
     def text(self, key: str, default: str | None = None) -> str:
+        """The option's text, or `default`; a missing option without a default is a one-line `DarknetFileError`."""
         if key in self.options:
             return self.options[key]
         if default is None:
@@ -46,9 +47,11 @@ class Section:
             raise DarknetFileError(f"{self._where(key)}: {raw!r} is not {what}; fix the cfg") from None
 
     def int(self, key: str, default: int | None = None) -> int:
+        """The option as an integer, or `default`; missing or malformed, a one-line `DarknetFileError`."""
         return self._number(key, default, int, "an integer")
 
     def float(self, key: str, default: float | None = None) -> float:
+        """The option as a number, or `default`; missing or malformed, a one-line `DarknetFileError`."""
         return self._number(key, default, float, "a number")
 
     def _numbers(self, key: str, convert: type, what: str) -> tuple:
@@ -60,11 +63,13 @@ class Section:
                                    "fix the cfg") from None
 
     def ints(self, key: str, default: tuple[int, ...] | None = None) -> tuple[int, ...]:
+        """The option's comma-separated integers, or `default` when it is absent."""
         if key not in self.options and default is not None:
             return default
         return self._numbers(key, int, "integers")
 
     def floats(self, key: str) -> tuple[float, ...]:
+        """The option's comma-separated numbers (required)."""
         return self._numbers(key, float, "numbers")
 
     def fail(self, message: str) -> DarknetFileError:

@@ -92,6 +92,7 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
 
 
 def main() -> int:
+    """`python -m avsim.perception.yolo.fetch`: fetch and check YOLOv3-tiny's Darknet files; returns the exit status."""
     try:
         cfg_path, weights_path, names_path = fetch()
     except YoloWeightsError as exc:

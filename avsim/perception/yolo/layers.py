@@ -62,6 +62,7 @@ class Convolutional(nn.Module):
         self.stride = stride
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, c_in, H, W) -> (B, filters, H / stride, W / stride): conv (batch norm folded in), activation."""
         return self.act(self.conv(x))
 
 
@@ -87,6 +88,7 @@ class MaxPool(nn.Module):
         return before, after
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, C, H, W) -> (B, C, H_out, W_out), H_out = (H + padding - size) // stride + 1 (Darknet pads with -inf)."""
         (top, bottom), (left, right) = self._pads(x.shape[-2]), self._pads(x.shape[-1])
         if top or bottom or left or right:
             x = F.pad(x, (left, right, top, bottom), value=float("-inf"))
@@ -104,6 +106,7 @@ class Upsample(nn.Module):
             raise section.fail(f"stride={self.stride}: downsampling (negative stride) is not supported")
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, C, H, W) -> (B, C, H * stride, W * stride), nearest neighbour, times `scale`."""
         x = F.interpolate(x, scale_factor=self.stride, mode="nearest")
         return x * self.scale if self.scale != 1.0 else x
 
@@ -118,6 +121,7 @@ class Route(nn.Module):
         self.group_id = group_id
 
     def forward(self, inputs: list[torch.Tensor]) -> torch.Tensor:
+        """The sources' chosen channel groups, concatenated along channels (one source: as it is)."""
         if self.groups > 1:
             inputs = [x.chunk(self.groups, dim=1)[self.group_id] for x in inputs]
         return inputs[0] if len(inputs) == 1 else torch.cat(inputs, dim=1)
@@ -134,6 +138,7 @@ class Shortcut(nn.Module):
         self.act = activation(section.text("activation", "linear"), section)
 
     def forward(self, x: torch.Tensor, other: torch.Tensor) -> torch.Tensor:
+        """`x + other` (same shape), then the activation."""
         if x.shape != other.shape:
             raise ValueError(f"shortcut of {tuple(x.shape)} and {tuple(other.shape)}: shapes differ")
         return self.act(x + other)
@@ -165,4 +170,5 @@ class Yolo(nn.Module):
         self.scale_x_y = section.float("scale_x_y", 1.0)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """The head's input unchanged; decoding is `avsim.perception.yolo.decode`."""
         return x

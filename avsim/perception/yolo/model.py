@@ -55,6 +55,7 @@ class YoloModel(nn.Module):
 
     @property
     def size_multiple_px(self) -> int:
+        """What the input's width and height must be multiples of [px] (the network's largest downsampling)."""
         return self.network.size_multiple_px
 
     def decoded(self, images: torch.Tensor) -> DecodedBoxes:

@@ -14,6 +14,9 @@ LAYOUT = RoadLayout(lane_width_m=3.5, lanes_per_direction=2, median_width_m=0.0,
 
 
 def build(spec: mujoco.MjSpec, layout: RoadLayout, rng: np.random.Generator) -> list[PlacedSign]:
+    """Town03's scenery along the approach road (world frame [m]): building rows, parked cars and
+    street furniture; returns the non-target signs it placed.
+    """
     half_w = layout.half_width_m
     cross0, cross1 = layout.cross_street_x_m
     right_front = layout.lane_edge_y_m - SIGHT_CORRIDOR_M - 1.0

@@ -14,6 +14,7 @@ LAYOUT = RoadLayout(lane_width_m=3.5, lanes_per_direction=1, median_width_m=0.0,
 
 
 def build(spec: mujoco.MjSpec, layout: RoadLayout, rng: np.random.Generator) -> list[PlacedSign]:
+    """Town07's scenery along the approach road (world frame [m]); returns the non-target signs it placed."""
     edge = layout.lane_edge_y_m
     far_right = edge - SIGHT_CORRIDOR_M - 4.0
     crops = ("field_wheat", "field_green", "soil")

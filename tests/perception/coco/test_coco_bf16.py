@@ -12,7 +12,7 @@ from avsim.perception.ap import box_iou
 from avsim.perception.coco.bf16 import FLOAT32_LAYERS, Bf16CenterNet, Float32Island
 from avsim.perception.coco.model import load_centernet
 from avsim.perception.coco.network import HEATMAP_NAME
-from avsim.perception.coco.runner import CocoRunner
+from avsim.perception.coco.infer import CocoRunner
 from avsim.perception.factory import build_frame_detector
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 

@@ -7,7 +7,7 @@ under fp32 each frame gets its own batch-1 call. Measured on this machine's kern
 
 import pytest
 
-from avsim.bench import _approach_frames
+from avsim.bench.speed import _approach_frames
 from avsim.config import SimConfig
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.weights import resolve_weights_path

@@ -9,7 +9,7 @@ from avsim.loop import ClosedLoop
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.weights import SHIPPED_WEIGHTS
-from avsim.perception.onnx.runner import OnnxRunner
+from avsim.perception.onnx.infer import OnnxRunner
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import TOWNS
 

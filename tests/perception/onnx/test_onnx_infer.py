@@ -8,7 +8,7 @@ from avsim import cli
 from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.perception.base import SIGN_CLASSES
-from avsim.perception.onnx.runner import OnnxModelError, OnnxRunner
+from avsim.perception.onnx.infer import OnnxModelError, OnnxRunner
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
 CLASSES = "['stop_sign', 'yield', 'speed_limit']"

@@ -1,7 +1,7 @@
 """Sweep throughput on this machine: runs per minute with 1 and 2 local workers and with Ray.
 
-    python -m avsim.experiments.bench_sweep                  # the smoke sweep's grid at 2 seeds: 8 oracle runs
-    python -m avsim.experiments.bench_sweep --seeds 4 --no-ray
+    python -m avsim.bench.sweep_throughput                   # the smoke sweep's grid at 2 seeds: 8 oracle runs
+    python -m avsim.bench.sweep_throughput --seeds 4 --no-ray
 
 Every configuration runs the same specs through `run_batch`, as `avsim sweep` does, timed
 from the call to the last record: a pool's process start-up is included. For Ray, the local
@@ -54,6 +54,7 @@ class Timing:
 
     @property
     def runs_per_min(self) -> float:
+        """Runs per minute of wall time [1/min]."""
         return 60.0 * self.runs / self.wall_s
 
 
@@ -94,10 +95,12 @@ class WorkerSampler:
 
     @property
     def peak_mib(self) -> float | None:
+        """The largest peak resident memory of any sampled worker [MiB] (None if none was seen)."""
         return max(self.peaks.values()) if self.peaks else None
 
     @property
     def cpu_s(self) -> float | None:
+        """CPU time of the sampled workers, summed [s] (None if none was seen)."""
         return sum(self.cpu.values()) if self.cpu else None
 
     def _sample(self) -> None:
@@ -130,6 +133,7 @@ def _is_ray_worker(cmdline: list[str]) -> bool:
 
 
 def time_local(specs: Sequence[RunSpec], workers: int) -> Timing:
+    """Run `specs` through `run_batch` on a local pool of `workers` processes, timed."""
     own_before = resource.getrusage(resource.RUSAGE_SELF)
     with WorkerSampler(_is_pool_worker) as sampler:
         start = time.perf_counter()
@@ -162,6 +166,7 @@ def time_one_core(specs: Sequence[RunSpec]) -> Timing:
 
 
 def time_ray(specs: Sequence[RunSpec], workers: int) -> Timing:
+    """Run `specs` as Ray tasks on a local cluster of `workers` CPUs, timed (the cluster's start apart)."""
     from avsim.experiments.ray_backend import session
 
     start = time.perf_counter()
@@ -181,10 +186,11 @@ def bench_specs(seeds: int) -> list[RunSpec]:
     return dataclasses.replace(load_sweep(SMOKE_SWEEP), seeds=seeds).specs()
 
 
-PROG = "python -m avsim.experiments.bench_sweep"
+PROG = "python -m avsim.bench.sweep_throughput"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """`python -m avsim.bench.sweep_throughput`: print sweep throughput; returns the exit status."""
     parser = OneLineArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=number_flag(1, 1000, integer=True), default=2,
                         help="seeds per grid point of the smoke sweep (4 runs each)")

@@ -1,7 +1,7 @@
 """`report.md` of `avsim reproduce`: our measurements beside the study's, with the differences.
 
 Every number in the report is computed from the run records (`runs.jsonl`); the study's come
-from `avsim.experiments.study`. Cells report mean ± sample standard deviation over seeds, and
+from `avsim.experiments.study_figures`. Cells report mean ± sample standard deviation over seeds, and
 how many runs stopped before the sign.
 
 Conventions, as in the study: "before the sign" is along the road from the car's origin (the
@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from avsim.experiments import study
+from avsim.experiments import study_figures
 from avsim.experiments.figures import make_figures
 from avsim.experiments.report_cells import (Cells, Record, fmt, markdown_table, origin_before_sign_m,
                                             run_full_brake_decel_mps2)
@@ -57,14 +57,14 @@ def _cell_table(cells: Cells, experiment: Experiment) -> list[str]:
 
 def _table3(cells: Cells, stem: str) -> list[str]:
     rows = []
-    for name, theirs in study.TABLE3.items():
+    for name, theirs in study_figures.TABLE3.items():
         ours = cells.values(stem, name, origin_before_sign_m)
         rows.append([name, cells.stopped(stem, name), fmt(ours), f"{theirs.before_sign_m:+.1f}", _diff(ours, theirs.before_sign_m)])
     return ["Car origin before the sign at rest [m] (negative: past it).", "",
             *markdown_table(["cell", "stopped before sign (ours)", "ours", "study", "ours − study"], rows)]
 
 
-def _defended(cells: Cells, stem: str, reference: dict[str, study.DefendedStop]) -> list[str]:
+def _defended(cells: Cells, stem: str, reference: dict[str, study_figures.DefendedStop]) -> list[str]:
     rows = []
     for name, theirs in reference.items():
         times = cells.values(stem, name, "time_to_stop_s")
@@ -100,14 +100,14 @@ def _fig3(cells: Cells, experiment: Experiment) -> list[str]:
     lo, hi = CONFIDENCE_WINDOW_M
     lines = [f"Front camera: the detector's best stop-sign confidence per frame (0 for a miss), averaged over the "
              f"frames {lo:g}–{hi:g} m from the sign, then over seeds. The study: the clean sign scores about "
-             f"{study.CLEAN_CONFIDENCE}, every attack lower, {study.LOWEST_CONFIDENCE_ATTACK} lowest.", "",
+             f"{study_figures.CLEAN_CONFIDENCE}, every attack lower, {study_figures.LOWEST_CONFIDENCE_ATTACK} lowest.", "",
              *markdown_table(["sign", "mean confidence", "first detection [m]", "baseline stopped before sign"], rows)]
     if means:
         lowest = min(means, key=means.get)
         clean = means.get("clean")
         lower = [name for name, m in means.items() if name != "clean" and clean is not None and m < clean]
         lines += [f"Lowest confidence here: **{lowest}** ({means[lowest]:.2f}); the study's lowest: "
-                  f"{study.LOWEST_CONFIDENCE_ATTACK}. Attacks scoring below the clean sign: {len(lower)} of "
+                  f"{study_figures.LOWEST_CONFIDENCE_ATTACK}. Attacks scoring below the clean sign: {len(lower)} of "
                   f"{len(means) - (clean is not None)}.", ""]
     return lines
 
@@ -135,7 +135,7 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
                 continue  # no run finished: nothing is known of this cell's outcome
             if config.policy.name == "baseline" and config.scenario.sign != "clean":
                 attacks.append(f"- {where}: {_did_not_stop(past)} in {len(past)} of {len(results)} finished runs"
-                               f"{_needed(past)} (the study's attacked car ran {-study.TABLE3['attacked sign, baseline'].before_sign_m:g} m past).")
+                               f"{_needed(past)} (the study's attacked car ran {-study_figures.TABLE3['attacked sign, baseline'].before_sign_m:g} m past).")
             elif past:
                 kind = "defence" if config.policy.name in DEFENCES else "undefended run at the clean sign"
                 failures.append(f"- {where} ({kind}): {_did_not_stop(past)} in {len(past)} of {len(results)} finished runs{_needed(past)}.")
@@ -181,8 +181,8 @@ def _needed(past: Sequence[dict[str, Any]]) -> str:
 _SECTIONS: dict[str, Callable[[Cells, Experiment, dict[str, Experiment]], list[str]]] = {
     "cells": lambda cells, experiment, by_name: [],
     "table3": lambda cells, experiment, by_name: _table3(cells, experiment.name),
-    "table1": lambda cells, experiment, by_name: _defended(cells, experiment.name, study.TABLE1),
-    "table2": lambda cells, experiment, by_name: _defended(cells, experiment.name, study.TABLE2),
+    "table1": lambda cells, experiment, by_name: _defended(cells, experiment.name, study_figures.TABLE1),
+    "table2": lambda cells, experiment, by_name: _defended(cells, experiment.name, study_figures.TABLE2),
     "fig3": lambda cells, experiment, by_name: _fig3(cells, experiment),
     "adaptive": lambda cells, experiment, by_name: adaptive_answer(cells, experiment),
     "compare": lambda cells, experiment, by_name: compare_section(cells, experiment, by_name.get(experiment.compare_with)),

@@ -1,6 +1,6 @@
 """Per-frame detector latency on this CPU, split into letterbox / forward / decode+NMS.
 
-    python -m avsim.perception.detector.bench_latency [--weights PATH] [--runs 50] [--threads 2]
+    python -m avsim.bench.detector_latency [--weights PATH] [--runs 50] [--threads 2]
 
 The fused model in channels-last memory under `torch.inference_mode()`, one 640x480 RGB
 frame at a time; prints medians (and 90th percentiles) over `--runs` frames after 10
@@ -64,7 +64,8 @@ def benchmark(model: torch.nn.Module, input_size: tuple[int, int], runs: int, co
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    prog = "python -m avsim.perception.detector.bench_latency"
+    """`python -m avsim.bench.detector_latency`: print the detector's per-frame latency; returns the exit status."""
+    prog = "python -m avsim.bench.detector_latency"
     parser = OneLineArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--weights", help="trained weights (default: randomly initialised build_detector())")
     parser.add_argument("--runs", type=number_flag(1, 100_000, integer=True), default=50)

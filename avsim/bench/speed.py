@@ -11,7 +11,7 @@ import time
 import mujoco
 
 from avsim.config import COCO_INPUTS, COCO_PRECISIONS, SimConfig, with_overrides
-from avsim.gym.bench import print_env_rows, print_vector_rows
+from avsim.bench.gym_env import print_env_rows, print_vector_rows
 from avsim.loop import ClosedLoop
 from avsim.runner import run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
@@ -148,6 +148,9 @@ def _closed_loop_rows(base: SimConfig, perception: str, towns: tuple[str, ...], 
 
 
 def run_benchmarks(quick: bool = False) -> None:
+    """Print `avsim bench`'s table: physics, rendering, detector latency, closed-loop and Gymnasium
+    speed on this machine (fewer repetitions with `quick`).
+    """
     base = SimConfig()
     frames = 50 if quick else 200
     print(f"avsim bench ({'quick' if quick else 'full'}): {base.camera.width_px}x{base.camera.height_px}, "
@@ -166,7 +169,7 @@ def run_benchmarks(quick: bool = False) -> None:
     no_abs = with_overrides(base, {"vehicle": {"abs_enabled": False, "traction_control_enabled": False}})
     _closed_loop_rows(no_abs, "oracle", ("town07",), "the same run without anti-lock brakes or traction control",
                       (("one camera, no ABS or TCS", "baseline"),))
-    # The Gymnasium environment against the closed loop it drives (avsim/gym/bench.py).
+    # The Gymnasium environment against the closed loop it drives (avsim/bench/gym_env.py).
     print_env_rows(base, ("oracle",) if quick else ("oracle", "detector"), repeats=1 if quick else 3)
     print_vector_rows((1, 8) if quick else (1, 8, 32), steps=10 if quick else 20)
     # The runs use perception.threads (1 by default: bit-identical everywhere, and a pool of
@@ -204,7 +207,3 @@ def run_benchmarks(quick: bool = False) -> None:
         print(f"  purify={purify:6s} whole 640x480 frame         {median_ms:6.1f} ms median    (90th percentile {p90_ms:.1f} ms)")
     _closed_loop_rows(base, "ensemble", ("town07",), "both networks on every frame",
                       (("one camera (baseline)", "baseline"),))
-
-
-if __name__ == "__main__":
-    run_benchmarks()
