@@ -187,11 +187,22 @@ class CameraConfig:
     # Segmentation is rendered at this multiple of the resolution so that
     # ground-truth boxes have sub-pixel edges (a 60 m sign is only 11 px tall).
     seg_supersample: int = 2
+    # The photographic model (sensors/photo.py, docs/realism.md), all off by default:
+    # RGB rendered at this multiple of the resolution and area-averaged down, as a photosite
+    # integrates the light over its area (anti-aliasing at the sensor).
+    supersample: int = 1
+    # Lens blur: a Gaussian point-spread function with this MTF50 [cycles/px] (0: an ideal lens).
+    lens_mtf50_cyc_per_px: float = ranged(0.0, 0, 1.0, unit="cycles/px")
+    # The ISP's JPEG encoding at this quality, after the sensor noise (0: frames stay uncompressed).
+    jpeg_quality: int = ranged(0, 0, 100)
 
     def __post_init__(self) -> None:
         check_ranges(self, "camera")
         _require(self.offsamples in (0, 1, 2, 4, 8, 16), f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
         _require(self.seg_supersample in (1, 2, 3, 4), f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
+        _require(self.supersample in (1, 2, 3, 4), f"camera.supersample must be 1, 2, 3 or 4, got {self.supersample}")
+        _require(self.lens_mtf50_cyc_per_px == 0 or self.lens_mtf50_cyc_per_px >= 0.05,
+                 f"camera.lens_mtf50_cyc_per_px must be 0 (an ideal lens) or in [0.05, 1], got {self.lens_mtf50_cyc_per_px}")
 
     @property
     def f_px(self) -> float:
