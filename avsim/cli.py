@@ -23,6 +23,7 @@ from avsim.boundary import run_guarded
 from avsim.cli_attack import add_attack_commands
 from avsim.cli_overrides import merge_overrides, parse_set
 from avsim.cli_recording import add_recording_modes
+from avsim.cli_realism import add_realism_command
 from avsim.config import LoopConfig, ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.library_output import quiet_rust_logs, route_mujoco_warnings_to_log
@@ -462,6 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(func=_cmd_bench)
     _add_detector_commands(sub)
     add_attack_commands(sub)
+    add_realism_command(sub)
     parser.add_argument("--debug", action="store_true", help="on an error, print the full traceback too")
     for _, child in iter_parsers(parser):
         if child is not parser:
