@@ -37,6 +37,8 @@ NO_SIGN = "none"
 # Values of ScenarioConfig.distractors (world/distractors.py) and .map_error (world/hd_map.py).
 DISTRACTORS = ("none", "red_signs")
 MAP_ERRORS = ("none", "missing_stop", "phantom_stop")
+# Values of ScenarioConfig.materials (world/props.py, world/surface_textures.py).
+MATERIALS = ("flat", "textured")
 # A stop sign turned at most this far from facing the car is for the car; one turned at least
 # SIGN_YAW_NOT_OURS_DEG faces the cross street. In between it is ambiguous, and refused.
 SIGN_YAW_FACING_DEG = 30.0
@@ -108,9 +110,13 @@ class ScenarioConfig:
     # stop in the world); "phantom_stop", the map lists a stop the world does not have (needs a
     # junction where no stop is required); "none", the map matches the world.
     map_error: str = "none"
+    # Surfaces: "flat", one colour each (the default renders); "textured", procedural texture at
+    # the scale a camera resolves (world/surface_textures.py, docs/realism.md).
+    materials: str = "flat"
 
     def __post_init__(self) -> None:
         check_ranges(self, "scenario")
+        _require(self.materials in MATERIALS, f"scenario.materials must be one of {', '.join(MATERIALS)}, got {self.materials!r}")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
                  f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
         yaw = abs(self.sign_yaw_deg)

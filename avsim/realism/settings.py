@@ -44,5 +44,8 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
     RenderSetting("lens", {"camera": {"lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX}}, "a real lens's blur, MTF50 0.33 cycles/px"),
     RenderSetting("jpeg", {"camera": {"jpeg_quality": ISP_JPEG_QUALITY}}, "the ISP's JPEG encoding at quality 90, after the noise"),
     RenderSetting("photo", {"camera": _PHOTO}, "all three photographic stages: ss2, lens and jpeg"),
+    RenderSetting("textured", {"scenario": {"materials": "textured"}},
+                  "surfaces with procedural texture at the scale a camera resolves (asphalt, grass, leaves, facades)"),
+    RenderSetting("textured_photo", {"scenario": {"materials": "textured"}, "camera": _PHOTO}, "textured and photo together"),
 )})
 

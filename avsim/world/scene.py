@@ -102,7 +102,7 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     spec = mujoco.MjSpec()
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
-    props.add_materials(spec)
+    props.add_materials(spec, textured=scenario.materials == "textured")
     props.add_ground(spec, town.ground_material)
     _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
     add_road(spec, town.layout, stop_line=scenario.stop_required)
