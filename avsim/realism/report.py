@@ -14,7 +14,7 @@ import numpy as np
 from avsim.perception.ap import average_precision
 from avsim.realism.frame_set import BIN_EDGES_M
 from avsim.realism.settings import NETWORKS, SETTINGS
-from avsim.stats import wilson_interval
+from avsim.stats import rate_with_interval, wilson_interval
 
 POOLED_RANGE_M = (10.0, 40.0)
 BINS = tuple(zip(BIN_EDGES_M[:-1], BIN_EDGES_M[1:]))
@@ -25,10 +25,7 @@ def _in_bin(dist_m: float, lo: float, hi: float) -> bool:
 
 
 def _recall_cell(found: list[bool]) -> str:
-    if not found:
-        return "–"
-    lo, hi = wilson_interval(sum(found), len(found))
-    return f"{sum(found)}/{len(found)} ({lo:.2f}–{hi:.2f})"
+    return rate_with_interval(sum(found), len(found))
 
 
 def sign_rows(rows: list[dict]) -> list[dict]:
