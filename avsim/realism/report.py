@@ -71,6 +71,14 @@ def false_stop_table(rows: list[dict]) -> list[str]:
     return lines
 
 
+def _stop_sign_ap(rows: list[dict]) -> float:
+    """AP at IoU 0.5 of the stop-sign detections of these rows against their labelled stop signs."""
+    detections = [d for r in rows for d in r["ap_detections"]]
+    scores = np.asarray([d[0] for d in detections], float)
+    is_tp = np.asarray([d[1] for d in detections], bool)
+    return average_precision(scores, is_tp, sum(r["n_truth"] for r in rows))
+
+
 def ap_table(rows: list[dict]) -> list[str]:
     """Stop-sign AP at IoU 0.5 per network and setting, over every frame of the set."""
     settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
@@ -78,12 +86,29 @@ def ap_table(rows: list[dict]) -> list[str]:
     for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
         cells = []
         for setting in settings:
-            mine = [r for r in rows if r["network"] == network and r["setting"] == setting]
-            detections = [d for r in mine for d in r["ap_detections"]]
-            scores = np.asarray([d[0] for d in detections], float)
-            is_tp = np.asarray([d[1] for d in detections], bool)
-            cells.append(f"{average_precision(scores, is_tp, sum(r['n_truth'] for r in mine)):.3f}")
+            cells.append(f"{_stop_sign_ap([r for r in rows if r['network'] == network and r['setting'] == setting]):.3f}")
         lines.append(f"| {network} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def summary_table(rows: list[dict]) -> list[str]:
+    """One line per network and setting: pooled recall 10-40 m and 40-60 m per camera (all towns),
+    false stop signs per frame, stop-sign AP."""
+    population = sign_rows(rows)
+    lines = ["| network | setting | front 10–40 m | front 40–60 m | side 10–40 m | side 40–60 m | false stop signs / frame | AP |",
+             "|---|---|---|---|---|---|---|---|"]
+    settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        for setting in settings:
+            cells = []
+            for camera in ("front", "side"):
+                for span in (POOLED_RANGE_M, (POOLED_RANGE_M[1], float(BIN_EDGES_M[-1]))):
+                    cells.append(_recall_cell([r["found"] for r in population if r["network"] == network and r["setting"] == setting
+                                               and r["camera"] == camera and _in_bin(r["dist_m"], *span)]))
+            frames = [r for r in rows if r["network"] == network and r["setting"] == setting]
+            false = sum(len(r["false_stop_signs"]) for r in frames)
+            lines.append(f"| {network} | {setting} | " + " | ".join(cells)
+                         + f" | {false / len(frames):.3f} ({false}/{len(frames)}) | {_stop_sign_ap(frames):.3f} |")
     return lines
 
 
@@ -106,6 +131,7 @@ def report(rows: list[dict], threshold: float) -> str:
              "False stop signs: detections at or above the threshold centred on no labelled stop sign, on every frame "
              "(sign views and roadside views). Render CPU time includes Mesa's GL threads.", "",
              "## Render settings and their cost", "", *cost_table(rows), "",
+             "## Summary: recall pooled over towns (IoU >= 0.5), false stop signs, AP", "", *summary_table(rows), "",
              "## Stop-sign AP at IoU 0.5 (every frame)", "", *ap_table(rows), "",
              "## False stop signs per frame", "", *false_stop_table(rows), ""]
     for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):

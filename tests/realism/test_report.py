@@ -4,6 +4,7 @@ import math
 
 import pytest
 
+from avsim.stats import rate_with_interval
 from avsim.realism.report import ap_table, false_stop_table, recall_table, report, write_figure
 
 
@@ -54,6 +55,8 @@ def test_the_report_covers_every_setting_and_network():
     text = report(_grid_rows(), 0.5)
     assert text.startswith("# Render realism benchmark (6 frames)")
     assert "| photo | camera.supersample=2" in text and "## own detector (detector), side camera" in text
+    two, one = rate_with_interval(2, 2), rate_with_interval(1, 1)  # 12 and 33 m pooled, 57 m beyond 40 m
+    assert f"| coco | photo | {two} | {one} | {two} | {one} | 0.000 (0/6) | 1.000 |" in text
 
 
 @pytest.mark.slow  # matplotlib's import and layout: about 5 s here
