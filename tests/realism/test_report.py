@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from avsim.stats import rate_with_interval
 from avsim.realism.report import ap_table, false_stop_table, recall_table, report, write_figure
+from avsim.stats import rate_with_interval
 
 
 def _row(setting="baseline", network="coco", town="town07", camera="front", dist_m=12.0, found=True, frame=0,
