@@ -61,8 +61,10 @@ def run_benchmark(plan: BenchmarkPlan, workers: int) -> list[dict]:
 
     jobs = [(setting, scene, plan.threshold) for setting, scene in plan.jobs()]
     rows: list[dict] = []
+    # Built here first, whatever the workers: missing or corrupt weights are refused in one line
+    # before anything renders, not inside a worker.
+    _WORKER["networks"] = build_networks(plan.networks)
     if workers == 1:
-        _WORKER["networks"] = build_networks(plan.networks)
         for job in tqdm(jobs, desc="realism", unit="scene"):
             rows.extend(run_job(job))
         return rows

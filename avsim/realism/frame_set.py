@@ -16,6 +16,7 @@ Labels are the visible part of each sign face (segmentation, `CameraRig.sign_box
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -93,8 +94,6 @@ def scene_config(scene: SceneDraw, setting: RenderSetting) -> SimConfig:
 def render_scene(scene: SceneDraw, setting: RenderSetting) -> Iterator[tuple[Frame, mujoco.MjModel, mujoco.MjData, CameraRig]]:
     """Each frame of `scene` under `setting`, with the model, data and rig it was drawn by (for a
     segmentation look-up while the pose holds): every camera at every bin, then the roadside views."""
-    import time
-
     config = scene_config(scene, setting)
     spec, info = compose_scene(config)
     model = spec.compile()

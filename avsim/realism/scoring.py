@@ -25,6 +25,8 @@ from avsim.realism.frame_set import Frame
 from avsim.sensors.camera import CameraRig
 
 _COPY_NUMBER = re.compile(r"_?-?\d+")
+# Each camera's deployed region of interest, as the closed loop searches it.
+_REGIONS_PX = {"front": PerceptionConfig().front_roi_px, "side": PerceptionConfig().side_roi_px}
 
 
 def build_networks(names: tuple[str, ...]) -> dict[str, object]:
@@ -57,8 +59,7 @@ def score_frame(frame: Frame, detector: object, threshold: float, model: mujoco.
                 rig: CameraRig, segmentation: dict) -> dict:
     """The row of one frame for one network. `segmentation` caches the frame's geom-id image across
     networks (filled on the first false stop sign)."""
-    defaults = PerceptionConfig()
-    region = {"front": defaults.front_roi_px, "side": defaults.side_roi_px}[frame.camera]
+    region = _REGIONS_PX[frame.camera]
     stops = [d for d in detector.detect(frame.image, frame.camera, region_px=region) if d.class_name == "stop_sign"]
     scores = np.asarray([d.confidence for d in stops], float)
     boxes = np.asarray([d.box_xyxy_px for d in stops], float).reshape(-1, 4)
