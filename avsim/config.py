@@ -35,12 +35,15 @@ ENSEMBLE_NETWORKS = ("detector", "coco", "yolo")
 # Values of CameraConfig.offsamples and .seg_supersample, and of PerceptionConfig.purify_median_kernel_px.
 OFFSAMPLES = (0, 1, 2, 4, 8, 16)
 SEG_SUPERSAMPLES = (1, 2, 3, 4)
+SUPERSAMPLES = (1, 2, 3, 4)
 MEDIAN_KERNELS_PX = (3, 5, 7, 9)
 # scenario.sign = NO_SIGN: no stop sign at the junction (a speed-limit sign stands on its post).
 NO_SIGN = "none"
 # Values of ScenarioConfig.distractors (world/distractors.py) and .map_error (world/hd_map.py).
 DISTRACTORS = ("none", "red_signs")
 MAP_ERRORS = ("none", "missing_stop", "phantom_stop")
+# Values of ScenarioConfig.materials (world/props.py, world/surface_textures.py).
+MATERIALS = ("flat", "textured")
 # A stop sign turned at most this far from facing the car is for the car; one turned at least
 # SIGN_YAW_NOT_OURS_DEG faces the cross street. In between it is ambiguous, and refused.
 SIGN_YAW_FACING_DEG = 30.0
@@ -112,9 +115,13 @@ class ScenarioConfig:
     # stop in the world); "phantom_stop", the map lists a stop the world does not have (needs a
     # junction where no stop is required); "none", the map matches the world.
     map_error: str = "none"
+    # Surfaces: "flat", one colour each (the default renders); "textured", procedural texture at
+    # the scale a camera resolves (world/surface_textures.py, docs/realism.md).
+    materials: str = "flat"
 
     def __post_init__(self) -> None:
         check_ranges(self, "scenario")
+        _require(self.materials in MATERIALS, f"scenario.materials must be one of {', '.join(MATERIALS)}, got {self.materials!r}")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
                  f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
         yaw = abs(self.sign_yaw_deg)
@@ -191,11 +198,22 @@ class CameraConfig:
     # Segmentation is rendered at this multiple of the resolution so that
     # ground-truth boxes have sub-pixel edges (a 60 m sign is only 11 px tall).
     seg_supersample: int = 2
+    # The photographic model (sensors/photo.py, docs/realism.md), all off by default:
+    # RGB rendered at this multiple of the resolution and area-averaged down, as a photosite
+    # integrates the light over its area (anti-aliasing at the sensor).
+    supersample: int = 1
+    # Lens blur: a Gaussian point-spread function with this MTF50 [cycles/px] (0: an ideal lens).
+    lens_mtf50_cyc_per_px: float = ranged(0.0, 0, 1.0, unit="cycles/px")
+    # The ISP's JPEG encoding at this quality, after the sensor noise (0: frames stay uncompressed).
+    jpeg_quality: int = ranged(0, 0, 100)
 
     def __post_init__(self) -> None:
         check_ranges(self, "camera")
         _require(self.offsamples in OFFSAMPLES, f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
         _require(self.seg_supersample in SEG_SUPERSAMPLES, f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
+        _require(self.supersample in SUPERSAMPLES, f"camera.supersample must be 1, 2, 3 or 4, got {self.supersample}")
+        _require(self.lens_mtf50_cyc_per_px == 0 or self.lens_mtf50_cyc_per_px >= 0.05,
+                 f"camera.lens_mtf50_cyc_per_px must be 0 (an ideal lens) or in [0.05, 1], got {self.lens_mtf50_cyc_per_px}")
 
     @property
     def f_px(self) -> float:

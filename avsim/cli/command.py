@@ -20,7 +20,7 @@ import argparse
 from collections.abc import Iterator, Sequence
 
 from avsim.boundary import run_guarded
-from avsim.cli import attack, batches, bench, detect, detector, run, snapshot
+from avsim.cli import attack, batches, bench, detect, detector, realism, run, snapshot
 from avsim.config import check_seed
 from avsim.library_output import quiet_rust_logs, route_mujoco_warnings_to_log
 from avsim.outputs import check_declared_outputs
@@ -30,7 +30,7 @@ from avsim.workers import quiet_resource_tracker
 
 # One module per command group, each adding its subcommands in this order (`avsim --help` lists them so):
 # run; reproduce, sweep, leaderboard; snapshot; detect, replay; bench; detector ...; attack ...
-COMMAND_GROUPS = (run, batches, snapshot, detect, bench, detector, attack)
+COMMAND_GROUPS = (run, batches, snapshot, detect, bench, detector, attack, realism)
 
 
 def build_parser() -> argparse.ArgumentParser:

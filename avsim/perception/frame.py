@@ -103,8 +103,7 @@ class FramePerception(Perception):
 
     def _frame(self, rig: CameraRig, data: mujoco.MjData, camera: str) -> np.ndarray:
         needed = self._pixels_needed(rig, camera)
-        frame = rig.render_rgb(data, camera, needed)
-        return frame if self.noise is None else self.noise.apply(frame, needed)
+        return rig.render_rgb(data, camera, needed, noise=self.noise)
 
     def _pixels_needed(self, rig: CameraRig, camera: str) -> Region | None:
         if not hasattr(self.detector, "pixels_needed"):

@@ -18,6 +18,8 @@ import numpy as np
 
 from avsim.config import CameraConfig, focal_length_px
 from avsim.sensors.gl import OffscreenRenderer
+from avsim.sensors.noise import SensorNoise
+from avsim.sensors.photo import PhotoModel
 
 CAMERA_NAMES = ("front", "side")
 # The ego car's own shell is in geom group 2; its cameras do not see it (they sit inside it).
@@ -106,6 +108,7 @@ class CameraRig:
         self._option.geomgroup[3] = 0
         self.reuse_last_frame = False  # see `render_rgb`
         self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
+        self._photo = PhotoModel.from_config(config)
 
     def intrinsics(self, camera: str) -> Intrinsics:
         """The intrinsics of `camera` ("front" or "side")."""
@@ -116,12 +119,18 @@ class CameraRig:
         cid = self._ids[camera]
         return CameraPose(data.cam_xpos[cid].copy(), data.cam_xmat[cid].reshape(3, 3).copy())
 
-    def render_rgb(self, data: mujoco.MjData, camera: str, region_px: tuple[int, int, int, int] | None = None) -> np.ndarray:
-        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array).
+    def render_rgb(self, data: mujoco.MjData, camera: str, region_px: tuple[int, int, int, int] | None = None,
+                   noise: SensorNoise | None = None) -> np.ndarray:
+        """RGB image (H, W, 3) uint8, row 0 at the top (a fresh array), through the camera's
+        photographic model (`avsim.sensors.photo`: lens, photosite, then `noise`, then the ISP's
+        encoding; all off by default).
 
         region_px: (x0, y0, x1, y1) [px], end-exclusive: read back only that part (the same pixels
         as in the whole image; reading back is where a software rasteriser spends its time) and
         leave the rest zero. For a perception that looks at a region of interest only.
+
+        noise: the run's sensor noise, drawn for this frame (None: none). It is added after the
+        lens and the photosite and before the JPEG encoding, as in a camera.
 
         With `reuse_last_frame` on, the last frame of each camera is kept with what it was drawn
         from (the poses, and the geoms' groups and colours), and asking again for the same camera
@@ -130,22 +139,46 @@ class CameraRig:
         a caller may change the model's appearance in other ways between two renders of one state
         (a texture, a light); the recorders turn it on for their run, in which nothing does. Then
         every frame is drawn whole, a region included, since the recorder wants the whole of it.
+        The kept frame is the one before the noise and the encoding.
         """
+        width, height = self._config.width_px, self._config.height_px
+        padded = self._photo.padded_region(region_px, width, height)
         key = _render_key(self._model, data) if self.reuse_last_frame else None
         last = self._last_rgb.get(camera)
         if key is not None and last is not None and last[0] == key:
-            return last[1].copy()
-        if self._rgb is None:
-            self._rgb = OffscreenRenderer(self._model, self._config.width_px, self._config.height_px, segmentation=False, fog=self._fog)
-        if region_px is not None and key is None:
+            frame = last[1].copy()
+        else:
+            frame = self._draw(data, camera, padded if key is None else None)
+            if key is not None:
+                self._last_rgb[camera] = (key, frame.copy())
+        if noise is not None:
+            frame = noise.apply(frame, padded)
+        if self._photo.jpeg_quality:
+            if padded is None:
+                frame = self._photo.encode(frame)
+            else:
+                x0, y0, x1, y1 = padded
+                frame[y0:y1, x0:x1] = self._photo.encode(frame[y0:y1, x0:x1])
+        if padded != region_px:  # keep the region asked for only, as a region render always has
             x0, y0, x1, y1 = region_px
-            frame = np.zeros((self._config.height_px, self._config.width_px, 3), np.uint8)
-            frame[y0:y1, x0:x1] = self._rgb.render(data, self._ids[camera], self._option, region_px)
-            return frame
-        frame = self._rgb.render(data, self._ids[camera], self._option).copy()
-        if key is not None:
-            self._last_rgb[camera] = (key, frame)
-            return frame.copy()
+            kept = np.zeros_like(frame)
+            kept[y0:y1, x0:x1] = frame[y0:y1, x0:x1]
+            frame = kept
+        return frame
+
+    def _draw(self, data: mujoco.MjData, camera: str, region_px: tuple[int, int, int, int] | None) -> np.ndarray:
+        """A fresh (H, W, 3) frame through the lens and the photosites: whole, or only `region_px`
+        (the rest zero)."""
+        s = self._photo.supersample
+        if self._rgb is None:
+            self._rgb = OffscreenRenderer(self._model, self._config.width_px * s, self._config.height_px * s,
+                                          segmentation=False, fog=self._fog)
+        if region_px is None:
+            return np.array(self._photo.lens(self._photo.integrate(self._rgb.render(data, self._ids[camera], self._option))))
+        x0, y0, x1, y1 = region_px
+        frame = np.zeros((self._config.height_px, self._config.width_px, 3), np.uint8)
+        rendered = self._rgb.render(data, self._ids[camera], self._option, (x0 * s, y0 * s, x1 * s, y1 * s))
+        frame[y0:y1, x0:x1] = self._photo.lens(self._photo.integrate(rendered))
         return frame
 
     def render_segmentation(self, data: mujoco.MjData, camera: str) -> np.ndarray:

@@ -11,6 +11,9 @@ import math
 import mujoco
 import numpy as np
 
+from avsim.world import surface_textures as st
+from avsim.world.signs import set_texture_data
+
 BOX = mujoco.mjtGeom.mjGEOM_BOX
 CYL = mujoco.mjtGeom.mjGEOM_CYLINDER
 ELLIPSOID = mujoco.mjtGeom.mjGEOM_ELLIPSOID
@@ -38,23 +41,48 @@ CAR_PAINTS = ((0.1, 0.2, 0.5), (0.85, 0.85, 0.85), (0.1, 0.1, 0.1), (0.3, 0.35, 
 FACADES = ("facade_brick", "facade_concrete", "facade_glass", "facade_sand")
 
 
-def add_materials(spec: mujoco.MjSpec) -> None:
-    """Register every material the builders use, plus the sky."""
+_FACADE_COLOURS = {  # wall, window
+    "facade_brick": ((0.55, 0.3, 0.22), (0.2, 0.24, 0.3)),
+    "facade_concrete": ((0.7, 0.7, 0.68), (0.25, 0.3, 0.36)),
+    "facade_glass": ((0.35, 0.45, 0.55), (0.2, 0.28, 0.36)),
+    "facade_sand": ((0.8, 0.72, 0.55), (0.28, 0.3, 0.34)),
+}
+
+
+def add_materials(spec: mujoco.MjSpec, textured: bool = False) -> None:
+    """Register every material the builders use, plus the sky. `textured` (scenario.materials):
+    surfaces carry procedural texture at the scale a camera resolves (`avsim.world.surface_textures`)
+    instead of one flat colour each, and facades a storey of wall and window instead of a checker."""
     spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
                      rgb1=[0.55, 0.7, 0.9], rgb2=[0.9, 0.93, 0.97], width=256, height=256)
+    if textured:
+        _add_textured_materials(spec)
+        return
     for name, rgb in _FLAT_COLOURS.items():
         spec.add_material(name=name, rgba=[*rgb, 1.0])
     # Facades: a checker texture repeated per metre reads as rows of windows.
-    for name, (wall, window) in {
-        "facade_brick": ((0.55, 0.3, 0.22), (0.2, 0.24, 0.3)),
-        "facade_concrete": ((0.7, 0.7, 0.68), (0.25, 0.3, 0.36)),
-        "facade_glass": ((0.35, 0.45, 0.55), (0.2, 0.28, 0.36)),
-        "facade_sand": ((0.8, 0.72, 0.55), (0.28, 0.3, 0.34)),
-    }.items():
+    for name, (wall, window) in _FACADE_COLOURS.items():
         spec.add_texture(name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
                          rgb1=list(wall), rgb2=list(window), width=64, height=64)
         mat = spec.add_material(name=name, texrepeat=[0.3, 0.3], texuniform=True)
         mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
+
+
+def _add_textured_materials(spec: mujoco.MjSpec) -> None:
+    def add(name: str, rgb: np.ndarray, repeat_per_m: tuple[float, float]) -> None:
+        set_texture_data(spec.add_texture(name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D), rgb)
+        mat = spec.add_material(name=name, texrepeat=list(repeat_per_m), texuniform=True)
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
+
+    textures = st.ground_textures(_FLAT_COLOURS)
+    for name, rgb in _FLAT_COLOURS.items():
+        if name not in textures:
+            spec.add_material(name=name, rgba=[*rgb, 1.0])
+        else:
+            span_m = st.CONCRETE_REPEAT_M if name in st.CONCRETE else st.GROUND_REPEAT_M
+            add(name, textures[name], (1 / span_m, 1 / span_m))
+    for name, rgb in st.facade_textures(_FACADE_COLOURS).items():
+        add(name, rgb, (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
 
 
 def _geom(spec: mujoco.MjSpec, name: str, kind: int, pos, size, material: str | None = None, rgba=None, quat=None) -> None:

@@ -102,7 +102,7 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     spec = mujoco.MjSpec()
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
-    props.add_materials(spec)
+    props.add_materials(spec, textured=scenario.materials == "textured")
     props.add_ground(spec, town.ground_material)
     _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
     add_road(spec, town.layout, stop_line=scenario.stop_required)
@@ -153,8 +153,8 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
     spec.visual.quality.numslices = 12
     spec.visual.quality.numstacks = 6
     cam = config.camera
-    spec.visual.global_.offwidth = cam.width_px * cam.seg_supersample
-    spec.visual.global_.offheight = cam.height_px * cam.seg_supersample
+    spec.visual.global_.offwidth = cam.width_px * max(cam.seg_supersample, cam.supersample)
+    spec.visual.global_.offheight = cam.height_px * max(cam.seg_supersample, cam.supersample)
     spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
     spec.visual.headlight.diffuse = [0.25, 0.25, 0.25]
     spec.visual.headlight.specular = [0.0, 0.0, 0.0]

@@ -1,0 +1,66 @@
+"""`avsim realism`: the render realism benchmark's command (`avsim.realism`, docs/realism.md).
+
+`avsim.cli.command` adds it to its parser (`add_commands`) and is its error boundary: every name is
+checked before anything renders, and the outputs are written whole or not at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+
+from avsim.outputs import FOLDER, add_output_argument, temporary_path, write_text
+from avsim.realism.settings import NETWORKS, SETTINGS
+from avsim.validation import name_list_flag, number_flag
+
+DEFAULT_SETTINGS = "baseline,photo"
+DEFAULT_NETWORKS = "coco,yolo,detector"
+
+
+def _cmd_realism(args: argparse.Namespace) -> int:
+    from avsim.realism.benchmark import BenchmarkPlan, run_benchmark
+    from avsim.realism.report import report, write_figure
+    from avsim.world.towns import TOWNS
+
+    towns = args.towns or TOWNS.names()
+    for town in towns:
+        TOWNS.get(town)  # every name checked before anything renders
+    plan = BenchmarkPlan(tuple(SETTINGS[name] for name in args.settings), tuple(towns), args.frames,
+                         tuple(args.networks), args.threshold, args.seed)
+    rows = run_benchmark(plan, args.workers)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "frames.jsonl", "".join(json.dumps(row) + "\n" for row in rows))
+    text = report(rows, args.threshold)
+    write_text(out / "report.md", text)
+    figure = temporary_path(out / "recall.png", ".png")
+    write_figure(rows, figure)
+    os.replace(figure, out / "recall.png")
+    print(text)
+    print(f"wrote {out}/report.md, recall.png and frames.jsonl")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """`avsim realism ...` on the command line's subcommands."""
+    realism = sub.add_parser("realism", help="render realism benchmark: recall by distance, false stop signs and AP of "
+                                             "the real detectors on a fixed set of renders, per render setting")
+    realism.add_argument("--settings", type=name_list_flag(tuple(SETTINGS)), default=DEFAULT_SETTINGS.split(","),
+                         help=f"comma-separated render settings compared side by side (default {DEFAULT_SETTINGS}; "
+                              f"choose from {', '.join(SETTINGS)})")
+    realism.add_argument("--networks", type=name_list_flag(tuple(NETWORKS)), default=DEFAULT_NETWORKS.split(","),
+                         help=f"comma-separated networks (default {DEFAULT_NETWORKS})")
+    realism.add_argument("--towns", type=name_list_flag(), help="comma-separated towns (default: every town)")
+    realism.add_argument("--frames", type=number_flag(1, 1000, integer=True), default=2,
+                         help="scene draws per town (default 2): each gives every camera one frame per 5-m bin from "
+                              "10 to 60 m and 2 roadside views, with its own placement and daylight")
+    realism.add_argument("--threshold", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
+                         help="confidence that counts (the braking threshold, default 0.5)")
+    realism.add_argument("--seed", type=int, default=0, help="seed of the frame set (default 0)")
+    realism.add_argument("--workers", type=number_flag(1, 64, integer=True), default=min(2, os.cpu_count() or 1),
+                         help="worker processes (default 2)")
+    add_output_argument(realism, "--out", kind=FOLDER, default="results/realism",
+                        help="output folder for report.md, recall.png and frames.jsonl (default results/realism)")
+    realism.set_defaults(func=_cmd_realism)

@@ -1,0 +1,188 @@
+"""The realism benchmark's report: markdown tables and a recall-against-distance figure.
+
+Rows are those of `avsim.realism.benchmark.run_job` (one per frame and network). Recall cells give
+found/signs and the 95 % Wilson interval; "pooled" is 10-40 m, the range the issue's targets name.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from avsim.perception.ap import average_precision
+from avsim.realism.frame_set import BIN_EDGES_M
+from avsim.realism.settings import NETWORKS, SETTINGS
+from avsim.stats import rate_with_interval, wilson_interval
+
+POOLED_RANGE_M = (10.0, 40.0)
+BINS = tuple(zip(BIN_EDGES_M[:-1], BIN_EDGES_M[1:]))
+
+
+def _in_bin(dist_m: float, lo: float, hi: float) -> bool:
+    return lo <= dist_m < hi
+
+
+def _recall_cell(found: list[bool]) -> str:
+    return rate_with_interval(sum(found), len(found))
+
+
+def sign_rows(rows: list[dict]) -> list[dict]:
+    """Rows of frames that look at the stop sign from a bin's distance and see it (the recall population)."""
+    return [r for r in rows if r["dist_m"] is not None and r["n_truth"] > 0]
+
+
+def _ordered(values: set[str], order: list[str]) -> list[str]:
+    return [v for v in order if v in values] + sorted(values - set(order))
+
+
+def recall_table(rows: list[dict], network: str, camera: str, key: str = "found") -> list[str]:
+    """Per setting and town (and all towns): found/signs per 5-m bin and pooled 10-40 m."""
+    population = [r for r in sign_rows(rows) if r["network"] == network and r["camera"] == camera]
+    settings = _ordered({r["setting"] for r in population}, list(SETTINGS))
+    towns = sorted({r["town"] for r in population})
+    lines = ["| setting | town | " + " | ".join(f"{lo}–{hi}" for lo, hi in BINS) + " | pooled 10–40 m |",
+             "|---|---|" + "---|" * (len(BINS) + 1)]
+    for setting in settings:
+        for town in towns + ["all"]:
+            mine = [r for r in population if r["setting"] == setting and town in (r["town"], "all")]
+            cells = [_recall_cell([r[key] for r in mine if _in_bin(r["dist_m"], lo, hi)]) for lo, hi in BINS]
+            pooled = [r[key] for r in mine if _in_bin(r["dist_m"], *POOLED_RANGE_M)]
+            lines.append(f"| {setting} | {town} | " + " | ".join(cells) + f" | {_recall_cell(pooled)} |")
+    return lines
+
+
+def false_stop_table(rows: list[dict]) -> list[str]:
+    """Per network and setting: false stop signs per frame per town, and what they sit on."""
+    towns = sorted({r["town"] for r in rows})
+    lines = ["| network | setting | " + " | ".join(towns) + " | all | sits on |", "|---|---|" + "---|" * (len(towns) + 2)]
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        for setting in _ordered({r["setting"] for r in rows}, list(SETTINGS)):
+            mine = [r for r in rows if r["network"] == network and r["setting"] == setting]
+            cells = []
+            for town in towns + ["all"]:
+                frames = [r for r in mine if town in (r["town"], "all")]
+                count = sum(len(r["false_stop_signs"]) for r in frames)
+                cells.append(f"{count / len(frames):.3f} ({count}/{len(frames)})" if frames else "–")
+            on = Counter(f[-1] for r in mine for f in r["false_stop_signs"])
+            lines.append(f"| {network} | {setting} | " + " | ".join(cells) + " | "
+                         + (", ".join(f"{name} {n}" for name, n in on.most_common(4)) or "–") + " |")
+    return lines
+
+
+def _stop_sign_ap(rows: list[dict]) -> float:
+    """AP at IoU 0.5 of the stop-sign detections of these rows against their labelled stop signs."""
+    detections = [d for r in rows for d in r["ap_detections"]]
+    scores = np.asarray([d[0] for d in detections], float)
+    is_tp = np.asarray([d[1] for d in detections], bool)
+    return average_precision(scores, is_tp, sum(r["n_truth"] for r in rows))
+
+
+def ap_table(rows: list[dict]) -> list[str]:
+    """Stop-sign AP at IoU 0.5 per network and setting, over every frame of the set."""
+    settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
+    lines = ["| network | " + " | ".join(settings) + " |", "|---|" + "---|" * len(settings)]
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        cells = []
+        for setting in settings:
+            cells.append(f"{_stop_sign_ap([r for r in rows if r['network'] == network and r['setting'] == setting]):.3f}")
+        lines.append(f"| {network} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def summary_table(rows: list[dict]) -> list[str]:
+    """One line per network and setting: pooled recall 10-40 m and 40-60 m per camera (all towns),
+    false stop signs per frame, stop-sign AP."""
+    population = sign_rows(rows)
+    lines = ["| network | setting | front 10–40 m | front 40–60 m | side 10–40 m | side 40–60 m | false stop signs / frame | AP |",
+             "|---|---|---|---|---|---|---|---|"]
+    settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        for setting in settings:
+            cells = []
+            for camera in ("front", "side"):
+                for span in (POOLED_RANGE_M, (POOLED_RANGE_M[1], float(BIN_EDGES_M[-1]))):
+                    cells.append(_recall_cell([r["found"] for r in population if r["network"] == network and r["setting"] == setting
+                                               and r["camera"] == camera and _in_bin(r["dist_m"], *span)]))
+            frames = [r for r in rows if r["network"] == network and r["setting"] == setting]
+            false = sum(len(r["false_stop_signs"]) for r in frames)
+            lines.append(f"| {network} | {setting} | " + " | ".join(cells)
+                         + f" | {false / len(frames):.3f} ({false}/{len(frames)}) | {_stop_sign_ap(frames):.3f} |")
+    return lines
+
+
+def cost_table(rows: list[dict]) -> list[str]:
+    """Per setting: CPU time of a frame's render (median and mean [ms]), each frame counted once."""
+    first = min({r["network"] for r in rows}, key=list(NETWORKS).index)
+    lines = ["| setting | what it sets | why | frames | render CPU median [ms] | mean [ms] |", "|---|---|---|---|---|---|"]
+    for setting in _ordered({r["setting"] for r in rows}, list(SETTINGS)):
+        times = np.asarray([r["render_cpu_ms"] for r in rows if r["setting"] == setting and r["network"] == first])
+        spec = SETTINGS[setting]
+        lines.append(f"| {setting} | {spec.describe()} | {spec.why} | {len(times)} | {np.median(times):.1f} | {times.mean():.1f} |")
+    return lines
+
+
+def report(rows: list[dict], threshold: float) -> str:
+    n_frames = len({(r["setting"], r["town"], r["scene"], r["frame"]) for r in rows})
+    lines = [f"# Render realism benchmark ({n_frames} frames)", "",
+             f"Threshold {threshold}. Recall cells: signs found / signs in view (95 % Wilson interval); found = a "
+             "`stop_sign` detection at or above the threshold overlapping the labelled sign with IoU >= 0.5. "
+             "False stop signs: detections at or above the threshold centred on no labelled stop sign, on every frame "
+             "(sign views and roadside views). Render CPU time includes Mesa's GL threads.", "",
+             "## Render settings and their cost", "", *cost_table(rows), "",
+             "## Summary: recall pooled over towns (IoU >= 0.5), false stop signs, AP", "", *summary_table(rows), "",
+             "## Stop-sign AP at IoU 0.5 (every frame)", "", *ap_table(rows), "",
+             "## False stop signs per frame", "", *false_stop_table(rows), ""]
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        for camera in ("front", "side"):
+            lines += [f"## {NETWORKS[network]} ({network}), {camera} camera: recall, IoU >= 0.5", "",
+                      *recall_table(rows, network, camera), ""]
+        lines += [f"## {NETWORKS[network]} ({network}), front camera: recall, box centred on the sign", "",
+                  *recall_table(rows, network, "front", "found_centred"), ""]
+    return "\n".join(lines)
+
+
+def write_figure(rows: list[dict], path: Path) -> None:
+    """Recall (IoU >= 0.5, all towns) against distance: one panel per network and camera, a line per setting."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    networks = _ordered({r["network"] for r in rows}, list(NETWORKS))
+    settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
+    fig, axes = plt.subplots(2, len(networks), figsize=(4.2 * len(networks), 6.4), sharex=True, sharey=True, squeeze=False)
+    population = sign_rows(rows)
+    centres = [(lo + hi) / 2 for lo, hi in BINS]
+    for col, network in enumerate(networks):
+        for row_index, camera in enumerate(("front", "side")):
+            ax = axes[row_index][col]
+            for k, setting in enumerate(settings):
+                found_by_bin = defaultdict(list)
+                for r in population:
+                    if r["network"] == network and r["camera"] == camera and r["setting"] == setting:
+                        for lo, hi in BINS:
+                            if _in_bin(r["dist_m"], lo, hi):
+                                found_by_bin[lo].append(r["found"])
+                xs, ys, lows, highs = [], [], [], []
+                for (lo, _), x in zip(BINS, centres):
+                    found = found_by_bin[lo]
+                    if found:
+                        low, high = wilson_interval(sum(found), len(found))
+                        xs.append(x + 0.4 * (k - (len(settings) - 1) / 2))
+                        ys.append(sum(found) / len(found))
+                        lows.append(ys[-1] - low)
+                        highs.append(high - ys[-1])
+                ax.errorbar(xs, ys, yerr=[lows, highs], marker="o", ms=3, capsize=2, label=setting)
+            ax.set_title(f"{NETWORKS[network]}, {camera}")
+            ax.set_ylim(-0.02, 1.02)
+            ax.grid(alpha=0.3)
+            if row_index == 1:
+                ax.set_xlabel("distance to the sign [m]")
+            if col == 0:
+                ax.set_ylabel("stop-sign recall (IoU ≥ 0.5)")
+    axes[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

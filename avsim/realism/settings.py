@@ -1,0 +1,51 @@
+"""What `avsim realism` compares: named render settings (`--settings a,b`, side by side) and the
+networks that judge them (`--networks`).
+
+Each is a set of config overrides with the physical reason for it; every value is a stated camera
+spec, not a number searched for a detector's score. `baseline` is the default renderer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Mapping
+
+
+
+@dataclass(frozen=True)
+class RenderSetting:
+    """overrides: config sections to keys, e.g. {"camera": {"supersample": 2}}."""
+
+    name: str
+    overrides: Mapping[str, Mapping[str, object]]
+    why: str
+
+    def describe(self) -> str:
+        """"camera.supersample=2, ..." or "defaults"."""
+        keys = [f"{section}.{key}={value}" for section, values in self.overrides.items() for key, value in values.items()]
+        return ", ".join(keys) or "defaults"
+
+
+# Networks the benchmark can run: the two trained on COCO's photographs and avsim's own detector.
+NETWORKS = {"coco": "COCO CenterNet", "yolo": "YOLOv3-tiny", "detector": "own detector"}
+
+# A lens MTF50 of 0.33 cycles/px (Nyquist is 0.5): an assumed sharp lens. Its Gaussian PSF has
+# sigma = 0.57 px; with the photosite's box (supersampling) the system MTF50 comes to about 0.3.
+LENS_MTF50_CYC_PER_PX = 0.33
+# JPEG quality of an ISP that stores or streams compressed frames: an assumed high quality.
+ISP_JPEG_QUALITY = 90
+
+_PHOTO = {"supersample": 2, "lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX, "jpeg_quality": ISP_JPEG_QUALITY}
+SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
+    RenderSetting("baseline", {}, "the default renderer: one sample per pixel, an ideal lens, no encoding"),
+    RenderSetting("msaa4", {"camera": {"offsamples": 4}}, "MuJoCo's 4x multisampling: the renderer's edge anti-aliasing"),
+    RenderSetting("ss2", {"camera": {"supersample": 2}}, "a photosite integrates light over its area: 2x2 samples, box mean"),
+    RenderSetting("lens", {"camera": {"lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX}}, "a real lens's blur, MTF50 0.33 cycles/px"),
+    RenderSetting("jpeg", {"camera": {"jpeg_quality": ISP_JPEG_QUALITY}}, "the ISP's JPEG encoding at quality 90, after the noise"),
+    RenderSetting("photo", {"camera": _PHOTO}, "all three photographic stages: ss2, lens and jpeg"),
+    RenderSetting("textured", {"scenario": {"materials": "textured"}},
+                  "surfaces with procedural texture at the scale a camera resolves (asphalt, grass, leaves, facades)"),
+    RenderSetting("textured_photo", {"scenario": {"materials": "textured"}, "camera": _PHOTO}, "textured and photo together"),
+)})
+

@@ -1,0 +1,38 @@
+"""The benchmark's frame set: the experiment files' daylight, fixed by its seed, the same for every setting."""
+
+import tomllib
+from pathlib import Path
+
+from avsim.realism.frame_set import (EXPERIMENT_LIGHTING, PLACEMENT_ORDER, SENSOR_NOISE_STD_LEVELS, scene_config,
+                                     scene_draws)
+from avsim.realism.settings import SETTINGS
+from avsim.world.towns import PLACEMENTS
+
+EXPERIMENT = Path(__file__).resolve().parents[2] / "experiments" / "coco_detector.toml"
+
+
+def test_the_lighting_and_noise_are_the_coco_experiment_files():
+    spec = tomllib.loads(EXPERIMENT.read_text())
+    assert {key: tuple(map(float, span)) for key, span in spec["vary"]["scenario"].items()} == EXPERIMENT_LIGHTING
+    assert spec["defaults"]["perception"]["sensor_noise_std"] == SENSOR_NOISE_STD_LEVELS
+
+
+def test_scene_draws_are_fixed_by_the_seed_and_cycle_the_placements():
+    draws = scene_draws(("town07", "town10"), 4, seed=0)
+    assert draws == scene_draws(("town07", "town10"), 4, seed=0)
+    assert draws != scene_draws(("town07", "town10"), 4, seed=1)
+    assert [d.placement for d in draws[:4]] == [*PLACEMENT_ORDER, PLACEMENT_ORDER[0]]
+    assert set(PLACEMENT_ORDER) == set(PLACEMENTS.names())
+    for draw in draws:
+        for key, (lo, hi) in EXPERIMENT_LIGHTING.items():
+            assert lo <= getattr(draw, key) <= hi
+    # A town's draws do not depend on which other towns are in the set.
+    assert scene_draws(("town10",), 4, seed=0) == draws[4:]
+
+
+def test_a_setting_changes_the_camera_and_nothing_of_the_scene():
+    draw = scene_draws(("town03",), 1, seed=0)[0]
+    baseline, photo = scene_config(draw, SETTINGS["baseline"]), scene_config(draw, SETTINGS["photo"])
+    assert baseline.scenario == photo.scenario and baseline.camera != photo.camera
+    assert (photo.camera.supersample, photo.camera.jpeg_quality) == (2, 90)
+    assert baseline.scenario.town == "town03" and baseline.scenario.sign == "clean"

@@ -1,0 +1,65 @@
+"""The realism report on hand-made rows: Wilson cells, AP, false stop signs and what they sit on, the figure."""
+
+import math
+
+import pytest
+
+from avsim.realism.report import ap_table, false_stop_table, recall_table, report, write_figure
+from avsim.stats import rate_with_interval
+
+
+def _row(setting="baseline", network="coco", town="town07", camera="front", dist_m=12.0, found=True, frame=0,
+         false=(), detections=((0.9, True),), n_truth=1):
+    return {"setting": setting, "network": network, "town": town, "placement": "standard", "scene": 0, "frame": frame,
+            "camera": camera, "dist_m": dist_m, "render_cpu_ms": 7.0, "found": found, "found_centred": found,
+            "best_score": 0.9 if found else 0.0, "false_stop_signs": [list(f) for f in false],
+            "ap_detections": [list(d) for d in detections], "n_truth": n_truth}
+
+
+def test_recall_cells_count_signs_per_bin_with_wilson_intervals():
+    rows = [_row(dist_m=11.0, frame=0), _row(dist_m=13.0, found=False, frame=1, detections=()), _row(dist_m=52.0, frame=2),
+            _row(dist_m=None, frame=3, n_truth=0, detections=())]  # a roadside view is not in the recall population
+    table = recall_table(rows, "coco", "front")
+    town07 = next(line for line in table if line.startswith("| baseline | town07"))
+    cells = [c.strip() for c in town07.split("|")[3:-1]]
+    assert cells[0] == "1/2 (0.09–0.91)"  # 10-15 m
+    assert cells[8] == "1/1 (0.21–1.00)"  # 50-55 m
+    assert cells[-1] == "1/2 (0.09–0.91)"  # pooled 10-40 m leaves out 52 m
+    assert cells[1] == "–"
+
+
+def test_false_stop_signs_per_frame_name_what_they_sit_on():
+    rows = [_row(frame=0, false=[(0.8, 0, 0, 5, 5, "tree_right/crown"), (0.6, 0, 0, 5, 5, "tree_right/crown")]),
+            _row(frame=1, false=[(0.7, 0, 0, 5, 5, "sky")]), _row(frame=2), _row(frame=3, town="town10")]
+    line = next(line for line in false_stop_table(rows) if line.startswith("| coco | baseline"))
+    assert "1.000 (3/3)" in line and "0.000 (0/1)" in line and "0.750 (3/4)" in line
+    assert line.endswith("tree_right/crown 2, sky 1 |")
+
+
+def test_ap_is_computed_over_every_frame_of_a_setting():
+    rows = [_row(frame=0, detections=[(0.9, True), (0.8, False)]), _row(frame=1, detections=[(0.7, True)]),
+            _row(frame=2, detections=[], n_truth=1)]
+    line = ap_table(rows)[2]
+    # Ranked: TP, FP, TP over 3 signs: AP = 1/3 * 1 + 1/3 * 2/3 = 0.556.
+    assert line == f"| coco | {1 / 3 + (1 / 3) * (2 / 3):.3f} |"
+    assert not math.isnan(float(line.split("|")[2]))
+
+
+def _grid_rows():
+    return [_row(setting=s, network=n, camera=c, dist_m=d, frame=k)
+            for s in ("baseline", "photo") for n in ("coco", "detector") for c in ("front", "side")
+            for k, d in enumerate((12.0, 33.0, 57.0))]
+
+
+def test_the_report_covers_every_setting_and_network():
+    text = report(_grid_rows(), 0.5)
+    assert text.startswith("# Render realism benchmark (6 frames)")
+    assert "| photo | camera.supersample=2" in text and "## own detector (detector), side camera" in text
+    two, one = rate_with_interval(2, 2), rate_with_interval(1, 1)  # 12 and 33 m pooled, 57 m beyond 40 m
+    assert f"| coco | photo | {two} | {one} | {two} | {one} | 0.000 (0/6) | 1.000 |" in text
+
+
+@pytest.mark.slow  # matplotlib's import and layout: about 5 s here
+def test_the_figure_is_written(tmp_path):
+    write_figure(_grid_rows(), tmp_path / "recall.png")
+    assert (tmp_path / "recall.png").stat().st_size > 10_000

@@ -1,0 +1,41 @@
+"""Procedural surface textures: fixed by their seed, the flat colours on average, detail at the texel scale."""
+
+import numpy as np
+import pytest
+
+from avsim.config import ScenarioConfig
+from avsim.errors import ConfigError
+from avsim.world import props, surface_textures
+
+
+@pytest.fixture(scope="module")
+def ground():
+    return surface_textures.ground_textures(props._FLAT_COLOURS)
+
+
+def test_textures_are_the_same_every_time(ground):
+    again = surface_textures.ground_textures(props._FLAT_COLOURS)
+    assert all(np.array_equal(ground[name], again[name]) for name in ground)
+    facades = surface_textures.facade_textures(props._FACADE_COLOURS)
+    assert all(np.array_equal(a, b) for a, b in zip(facades.values(), surface_textures.facade_textures(props._FACADE_COLOURS).values()))
+
+
+def test_each_texture_keeps_its_flat_colour_on_average_and_varies_at_the_texel_scale(ground):
+    for name, texture in ground.items():
+        mean = texture.reshape(-1, 3).mean(axis=0) / 255
+        # Within 7 levels of 255: clipping of the brightest texels (wheat) moves the mean a little.
+        assert np.abs(mean - np.asarray(props._FLAT_COLOURS[name])).max() < 0.028, name
+        neighbour_step = np.abs(np.diff(texture.astype(float), axis=1)).mean()
+        assert neighbour_step > 2.0, name  # detail from texel to texel, not one colour
+
+
+def test_a_facade_texture_has_a_window_darker_than_its_wall():
+    brick = surface_textures.facade_textures(props._FACADE_COLOURS)["facade_brick"].astype(float)
+    assert brick.shape == (350, 250, 3)
+    assert brick[150:200, 70:110].mean() < 0.7 * brick[10:60, 10:40].mean()
+
+
+def test_materials_is_a_named_choice():
+    assert ScenarioConfig().materials == "flat"
+    with pytest.raises(ConfigError, match="scenario.materials"):
+        ScenarioConfig(materials="shiny")
