@@ -24,7 +24,9 @@ which runs must read it:
 Not checked yet: `avsim detect`, `avsim replay` and `avsim snapshot`, whose `--set` builds a
 perception (or a picture) outside the closed loop, where other keys are read.
 
-`scenario`, `vehicle`, `camera` and `loop` keys are read by every run and not checked here.
+The map's keys (`MAP_KEYS`: `scenario.map_error`, `scenario.map_stop_line_offset_m`) change only
+the HD map, which only the policies that declare `uses_map` read: they are owned by those policies.
+The other `scenario`, `vehicle`, `camera` and `loop` keys are read by every run and not checked here.
 `docs/config.md` (`python -m avsim.config_reference`) lists every key with its readers.
 """
 
@@ -34,12 +36,14 @@ import dataclasses
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from avsim.config import ENSEMBLE_NETWORKS, PerceptionConfig, PolicyConfig, SimConfig
+from avsim.config import ENSEMBLE_NETWORKS, PerceptionConfig, PolicyConfig, ScenarioConfig, SimConfig
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
 from avsim.perception.factory import CONDITIONAL_KEYS, NETWORK_KEYS, PERCEPTION_KEYS, PERCEPTIONS, perception_keys
 
 OWNED_SECTIONS = ("policy", "perception")
+# Scenario keys that change only the HD map (`avsim.world.hd_map`), read by map-reading policies alone.
+MAP_KEYS = ("scenario.map_error", "scenario.map_stop_line_offset_m")
 # Keys every run reads, whatever its policy and perception, and why: the two that choose them, and
 # the threshold by which the result record counts a confident stop-sign detection
 # (`first_detection_dist_m`, the trace's `top_stop_conf`, the video's boxes; `avsim.loop`).
@@ -51,8 +55,11 @@ EVERY_RUN_READS = {
 
 
 def policy_reads(name: str) -> frozenset[str]:
-    """The dotted `policy.*` keys the policy registered as `name` reads (with the every-run ones)."""
-    return frozenset(f"policy.{key}" for key in POLICIES.get(name).config_keys) | _every_run("policy")
+    """The dotted `policy.*` keys the policy registered as `name` reads (with the every-run ones), and
+    the map's keys when it reads the map."""
+    policy = POLICIES.get(name)
+    keys = frozenset(f"policy.{key}" for key in policy.config_keys) | _every_run("policy")
+    return keys | frozenset(MAP_KEYS) if policy.uses_map else keys
 
 
 def perception_reads(perception: PerceptionConfig) -> frozenset[str]:
@@ -62,7 +69,7 @@ def perception_reads(perception: PerceptionConfig) -> frozenset[str]:
 
 
 def keys_read(config: SimConfig) -> frozenset[str]:
-    """Every dotted `policy.*` and `perception.*` key that the run of `config` reads."""
+    """Every owned dotted key (`policy.*`, `perception.*`, `MAP_KEYS`) that the run of `config` reads."""
     return policy_reads(config.policy.name) | perception_reads(config.perception)
 
 
@@ -71,12 +78,15 @@ def _every_run(section: str) -> frozenset[str]:
 
 
 def set_keys(overrides: Mapping[str, Any]) -> frozenset[str]:
-    """The dotted `policy.*` and `perception.*` keys that a nested override mapping sets."""
+    """The owned dotted keys (`policy.*`, `perception.*`, `MAP_KEYS`) that a nested override mapping sets."""
     keys = set()
     for section in OWNED_SECTIONS:
         table = overrides.get(section)
         if isinstance(table, Mapping):
             keys.update(f"{section}.{key}" for key in table)
+    scenario = overrides.get("scenario")
+    if isinstance(scenario, Mapping):
+        keys.update(f"scenario.{key}" for key in scenario if f"scenario.{key}" in MAP_KEYS)
     return frozenset(keys)
 
 
@@ -84,6 +94,8 @@ def readers(dotted: str) -> str:
     """Who reads `dotted`, in words: "policy temporal_vote", "perception coco or an ensemble with
     coco, with perception.coco_input = upscale", "every run (it names the braking policy)"."""
     section, key = dotted.split(".", 1)
+    if dotted in MAP_KEYS:
+        return f"the policies that read the map ({', '.join(_map_readers())})"
     if section == "policy":
         names = [name for name in POLICIES.names() if key in POLICIES.get(name).config_keys]
         policies = f"polic{'ies' if len(names) > 1 else 'y'} {', '.join(names)}" if names else "no policy"
@@ -103,6 +115,10 @@ def readers(dotted: str) -> str:
     return text
 
 
+def _map_readers() -> list[str]:
+    return [name for name in POLICIES.names() if POLICIES.get(name).uses_map]
+
+
 def _conditional_on(key: str, keys: Iterable[str]) -> bool:
     """Whether `key` is read under one value of a key in `keys` (purify_jpeg_quality under purify)."""
     return key in CONDITIONAL_KEYS and CONDITIONAL_KEYS[key][0] in keys
@@ -111,7 +127,7 @@ def _conditional_on(key: str, keys: Iterable[str]) -> bool:
 def _this_run(config: SimConfig, dotted: str) -> str:
     """What the run has that keeps it from reading `dotted`, e.g. "policy is baseline"."""
     section, key = dotted.split(".", 1)
-    if section == "policy":
+    if section == "policy" or dotted in MAP_KEYS:
         return f"policy is {config.policy.name}"
     text = f"perception is {config.perception.kind}"
     if key in CONDITIONAL_KEYS:
@@ -121,7 +137,7 @@ def _this_run(config: SimConfig, dotted: str) -> str:
 
 
 def _owned(dotted: str) -> bool:
-    return dotted.split(".", 1)[0] in OWNED_SECTIONS
+    return dotted.split(".", 1)[0] in OWNED_SECTIONS or dotted in MAP_KEYS
 
 
 def check_read(config: SimConfig, keys: Iterable[str]) -> None:
@@ -141,7 +157,7 @@ def _fix(config: SimConfig, dotted: str) -> str:
         switch, value = CONDITIONAL_KEYS[key]
         if f"perception.{switch}" in keys_read(config):
             return f"set perception.{switch} = {value}"
-    return f"choose a {section} that reads it"
+    return f"choose a {'policy' if dotted in MAP_KEYS else section} that reads it"
 
 
 def check_read_by_some(configs: Iterable[SimConfig], keys: Iterable[str], runs: str = "run") -> None:
@@ -155,16 +171,20 @@ def check_read_by_some(configs: Iterable[SimConfig], keys: Iterable[str], runs: 
     if pending:
         key = sorted(pending)[0]
         raise ConfigError(f"{key} is read only by {readers(key)}, and no {runs} here has one, so it would be "
-                          f"ignored; remove it, or choose a {key.split('.')[0]} that reads it")
+                          f"ignored; remove it, or choose a {'policy' if key in MAP_KEYS else key.split('.')[0]} "
+                          f"that reads it")
 
 
 def as_run(config: SimConfig) -> SimConfig:
-    """`config` with every `policy.*` and `perception.*` key its run does not read back at its
-    default: two configs with the same `as_run` make the same run."""
+    """`config` with every owned key its run does not read back at its default: two configs with
+    the same `as_run` make the same run."""
     read = keys_read(config)
     policy = _defaults_for_unread(config.policy, PolicyConfig(), "policy", read)
     perception = _defaults_for_unread(config.perception, PerceptionConfig(), "perception", read)
-    return dataclasses.replace(config, policy=policy, perception=perception)
+    unread_map = {key.split(".", 1)[1]: getattr(ScenarioConfig(), key.split(".", 1)[1])
+                  for key in MAP_KEYS if key not in read}
+    scenario = dataclasses.replace(config.scenario, **unread_map)  # the defaults are valid with any scenario
+    return dataclasses.replace(config, scenario=scenario, policy=policy, perception=perception)
 
 
 def _defaults_for_unread(section: Any, default: Any, name: str, read: frozenset[str]) -> Any:
@@ -182,7 +202,7 @@ def identical_runs(labelled: Iterable[tuple[str, SimConfig]]) -> tuple[str, str,
         run = as_run(config)
         if run in seen:
             first_label, first = seen[run]
-            differ = [f"{section}.{f.name}" for section in OWNED_SECTIONS
+            differ = [f"{section}.{f.name}" for section in ("scenario", *OWNED_SECTIONS)
                       for f in dataclasses.fields(getattr(config, section))
                       if getattr(getattr(config, section), f.name) != getattr(getattr(first, section), f.name)]
             return first_label, label, differ

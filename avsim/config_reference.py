@@ -25,7 +25,7 @@ from typing import Any
 from avsim import config as config_module
 from avsim.boundary import run_guarded
 from avsim.config import SimConfig, type_name
-from avsim.config_owners import EVERY_RUN_READS, OWNED_SECTIONS, readers
+from avsim.config_owners import EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, readers
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
 from avsim.outputs import write_text
@@ -129,7 +129,7 @@ def section_table(section: str, instance: Any) -> list[str]:
             limits, unit = ", ".join(_value(c) for c in CHOICES[dotted]), ""
         else:
             limits, unit = "", ""
-        who = readers(dotted) if section in OWNED_SECTIONS else "every run"
+        who = readers(dotted) if section in OWNED_SECTIONS or dotted in MAP_KEYS else "every run"
         rows.append(f"| `{dotted}` | {_type_name(hints[f.name])} | {unit} | {_cell(limits)} | `{_value(getattr(instance, f.name))}` | "
                     f"{_cell(who)} | {_cell(meaning)} |")
     return rows

@@ -133,6 +133,24 @@ def test_a_perception_key_is_refused_exactly_where_the_perception_does_not_read_
                 check_read(config, {f"perception.{key}"})
 
 
+@pytest.mark.parametrize("name", POLICIES.names())
+def test_the_maps_keys_are_read_exactly_by_the_policies_that_read_the_map(name):
+    config = SimConfig(policy=PolicyConfig(name=name))
+    keys = {"scenario.map_stop_line_offset_m", "scenario.map_error"}
+    if POLICIES.get(name).uses_map:
+        check_read(config, keys)
+    else:
+        with pytest.raises(ConfigError, match=r"scenario\.map_error is read only by the policies that read the map "
+                                              r"\(autopilot, map_prior\), and this run's policy is " + name):
+            check_read(config, keys)
+
+
+def test_a_sweep_of_map_offsets_under_a_camera_policy_is_refused_as_one_run_twice(tmp_path):
+    grid = '"policy.name" = ["baseline", "map_prior"]\n"scenario.map_stop_line_offset_m" = [0, 5]'
+    with pytest.raises(ConfigError, match=r"are the same run: scenario\.map_stop_line_offset_m is not read"):
+        load_sweep(_write(tmp_path, SWEEP.format(grid=grid)))
+
+
 def test_the_every_run_keys_and_other_sections_are_never_refused():
     for name in POLICIES.names():
         config = SimConfig(policy=PolicyConfig(name=name), perception=PerceptionConfig(kind="none"))
@@ -148,6 +166,7 @@ def test_avsim_run_refuses_an_unread_key_in_one_line_with_exit_2(capsys):
 
 def test_set_keys_are_the_owned_keys_a_mapping_sets():
     assert set_keys({"policy": {"name": "x", "vote_k": 3}, "scenario": {"town": "t"}, "perception": {}}) == {"policy.name", "policy.vote_k"}
+    assert set_keys({"scenario": {"town": "t", "map_error": "phantom_stop"}}) == {"scenario.map_error"}
 
 
 # ---- experiment files, sweeps: where a key is written decides which runs must read it -------
