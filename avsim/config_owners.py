@@ -21,8 +21,10 @@ which runs must read it:
 - a leaderboard file: a defence's keys must be read by its runs; `[defaults]` keys by some run;
 - the Gymnasium environment: a perception key of `config_overrides` must be read by its
   perception (the agent takes the policy's place, so policy keys are not checked).
-Not checked yet: `avsim detect`, `avsim replay` and `avsim snapshot`, whose `--set` builds a
-perception (or a picture) outside the closed loop, where other keys are read.
+- `avsim detect` and `avsim replay` run a perception on image files or a bag's images, outside the
+  closed loop: no policy, scenario, vehicle, camera or loop key is read, and of the perception's
+  keys not the simulated sensor's (`check_read_on_images`).
+Not checked yet: `avsim snapshot`, whose `--set` builds a scene picture.
 
 The map's keys (`MAP_KEYS`: `scenario.map_error`, `scenario.map_stop_line_offset_m`) change only
 the HD map, which only the policies that declare `uses_map` read: they are owned by those policies.
@@ -158,6 +160,36 @@ def _fix(config: SimConfig, dotted: str) -> str:
         if f"perception.{switch}" in keys_read(config):
             return f"set perception.{switch} = {value}"
     return f"choose a {'policy' if dotted in MAP_KEYS else section} that reads it"
+
+
+# Perception keys that only a simulated camera gives meaning to: `avsim detect` searches a whole
+# image file, with no range limit; `avsim replay` reads a bag's clean renders, regions included.
+DETECT_UNREAD = ("perception.sensor_noise_std", "perception.min_box_height_px", "perception.front_roi_px",
+                 "perception.side_roi_px")
+REPLAY_UNREAD = ("perception.sensor_noise_std",)
+
+
+def check_only_perception_keys(overrides: Mapping[str, Any], command: str) -> None:
+    """Refuse, in one line, the first key of the nested `overrides` outside `perception`: a perception
+    run on images (`command`, e.g. "avsim detect") reads no other."""
+    for section, table in overrides.items():
+        if section != "perception" and isinstance(table, Mapping) and table:
+            key = f"{section}.{next(iter(table))}"
+            raise ConfigError(f"{key} is not read by {command}, which runs a perception on images without a "
+                              f"simulation; remove it (only perception.* keys apply)")
+
+
+def check_read_on_images(perception: PerceptionConfig, perception_overrides: Mapping[str, Any], command: str,
+                         unread: Iterable[str]) -> None:
+    """Refuse, in one line, the first key of `perception_overrides` (the `perception` table a user
+    set) that `perception`, run on images by `command`, does not read: one its kind does not read,
+    or one of `unread` (DETECT_UNREAD, REPLAY_UNREAD)."""
+    read = perception_reads(perception) - frozenset(unread)
+    for key in sorted(set_keys({"perception": perception_overrides})):
+        if key not in read:
+            why = ("a simulated camera's setting" if key in unread
+                   else f"read only by {readers(key)}, and the perception is {perception.kind}")
+            raise ConfigError(f"{key} is not read by {command} ({why}), so it would be ignored; remove it")
 
 
 def check_read_by_some(configs: Iterable[SimConfig], keys: Iterable[str], runs: str = "run") -> None:

@@ -25,7 +25,7 @@ from typing import Any
 from avsim import config as config_module
 from avsim.boundary import run_guarded
 from avsim.config import SimConfig, type_name
-from avsim.config_owners import EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, readers
+from avsim.config_owners import DETECT_UNREAD, EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, readers
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
 from avsim.outputs import write_text
@@ -145,7 +145,8 @@ def generate() -> str:
         "`config_overrides` of the Gymnasium environment ([running.md](running.md), [scaling.md](scaling.md)).",
         "An unknown key, a wrong type or a value out of range is refused before any work, naming the key.",
         "",
-        "**Who reads a key.** The scenario, vehicle, camera and loop keys are read by every run. A `policy.*` key",
+        "**Who reads a key.** The scenario, vehicle, camera and loop keys are read by every run, except the",
+        "map's (" + ", ".join(f"`{key}`" for key in MAP_KEYS) + "), read only by the policies that read the map. A `policy.*` key",
         "is read only by the policies that declare it, and a `perception.*` key only by the perceptions that",
         "declare it (`avsim/config_owners.py`). A key you set that the run's policy or perception does not read",
         "is refused, in one line naming the key and who reads it, exit 2; a default is never refused. A key in",
@@ -154,6 +155,9 @@ def generate() -> str:
         "reads it. A sweep whose grid points differ only in keys their runs do not read would run one run twice",
         "under two labels, and is refused: give that policy its own sweep file. Keys every run reads, whatever",
         "its policy and perception: " + "; ".join(f"`{key}` ({why})" for key, why in EVERY_RUN_READS.items()) + ".",
+        "`avsim detect` and `avsim replay` run a perception on images without a simulation: they refuse every",
+        "key but their perception's, and of those the simulated camera's (" + ", ".join(f"`{key}`" for key in DETECT_UNREAD)
+        + "; a bag's frames keep their regions). `avsim snapshot` is not checked yet.",
         "",
         "The meaning column is the comment written beside the field in `avsim/config.py`.",
         "",

@@ -12,8 +12,8 @@ import pytest
 
 from avsim import cli
 from avsim.config import PerceptionConfig, PolicyConfig, SimConfig
-from avsim.config_owners import (EVERY_RUN_READS, as_run, check_read, check_read_by_some, identical_runs, keys_read,
-                                 readers, set_keys)
+from avsim.config_owners import (DETECT_UNREAD, EVERY_RUN_READS, REPLAY_UNREAD, as_run, check_read, check_read_by_some,
+                                 check_read_on_images, identical_runs, keys_read, readers, set_keys)
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
 from avsim.experiments.leaderboard import load_leaderboard
@@ -162,6 +162,27 @@ def test_avsim_run_refuses_an_unread_key_in_one_line_with_exit_2(capsys):
     err = capsys.readouterr().err.strip()
     assert err == ("avsim: error: policy.vote_k is read only by policy temporal_vote, and this run's policy is baseline, "
                    "so it would be ignored; remove it, or choose a policy that reads it")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--set", "policy.vote_k=4"], "policy.vote_k is not read by avsim detect, which runs a perception on images"),
+    (["--set", "scenario.town=town03"], "scenario.town is not read by avsim detect"),
+    (["--set", "perception.sensor_noise_std=2"], "perception.sensor_noise_std is not read by avsim detect (a simulated camera's setting)"),
+    (["--set", "perception.front_roi_px=[0,0,64,64]"], "perception.front_roi_px is not read by avsim detect"),
+    (["--perception", "detector", "--set", "perception.coco_input=crop"], "perception.coco_input is not read by avsim detect (read only by perception coco"),
+])
+def test_avsim_detect_refuses_a_key_it_does_not_read_before_any_image(tmp_path, capsys, argv, message):
+    assert cli.main(["detect", str(tmp_path / "missing.png"), *argv]) == 2  # refused before the missing image
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_a_perception_on_images_accepts_the_keys_it_reads():
+    coco = PerceptionConfig(kind="coco", coco_input="crop")
+    check_read_on_images(coco, {"kind": "coco", "coco_input": "crop", "min_confidence": 0.2}, "avsim detect", DETECT_UNREAD)
+    check_read_on_images(coco, {"front_roi_px": [0, 0, 64, 64]}, "avsim replay", REPLAY_UNREAD)  # a bag's frames have regions
+    with pytest.raises(ConfigError, match="sensor_noise_std is not read by avsim replay"):
+        check_read_on_images(coco, {"sensor_noise_std": 2.0}, "avsim replay", REPLAY_UNREAD)
 
 
 def test_set_keys_are_the_owned_keys_a_mapping_sets():

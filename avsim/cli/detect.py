@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from avsim.cli.overrides import merge_overrides, parse_set
+from avsim.config_owners import DETECT_UNREAD, check_only_perception_keys, check_read_on_images
 from avsim.outputs import FILE, add_output_argument
 
 
@@ -18,7 +19,10 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     from avsim.config import SimConfig, with_overrides
 
     flags = {"perception": {"kind": args.perception}} if args.perception else {}
-    config = with_overrides(SimConfig(), merge_overrides(flags, parse_set(args.set))).perception
+    overrides = parse_set(args.set)
+    config = with_overrides(SimConfig(), merge_overrides(flags, overrides)).perception
+    check_only_perception_keys(overrides, "avsim detect")  # before any image is read
+    check_read_on_images(config, overrides.get("perception", {}), "avsim detect", DETECT_UNREAD)
     for record in detect_images(config, [Path(p) for p in args.images]):
         print(json.dumps(record), flush=True)
     return 0
@@ -30,7 +34,9 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from avsim.metrics import write_text_atomic
     from avsim.recording.ros_replay import replay
 
-    overrides = parse_set(args.set).get("perception", {})
+    given = parse_set(args.set)
+    check_only_perception_keys(given, "avsim replay")  # its perception keys: once the bag is open (`replay`)
+    overrides = given.get("perception", {})
     if args.perception:
         overrides = {**overrides, "kind": args.perception}
     lines = (json.dumps(record) for record in replay(args.bag, overrides))

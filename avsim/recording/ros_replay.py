@@ -33,6 +33,7 @@ import cv2
 import numpy as np
 
 from avsim.config import PerceptionConfig, SimConfig, with_overrides
+from avsim.config_owners import REPLAY_UNREAD, check_read_on_images
 from avsim.errors import ConfigError
 from avsim.perception.base import Detection
 from avsim.recording import ros_types
@@ -61,6 +62,9 @@ def replay(bag: str | os.PathLike, perception_overrides: Mapping[str, Any] | Non
                 topics = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
                 raise BagError(f"bag {path} has no {IMAGE_TYPE} topic to replay (its topics: {topics})")
             config = _perception_config(reader, perception_overrides or {})
+            # A key the user set that this perception does not read on a bag's images is refused
+            # before the first image (the bag's run decides the kind when the user names none).
+            check_read_on_images(config, perception_overrides or {}, "avsim replay", REPLAY_UNREAD)
             from avsim.perception.factory import build_frame_detector
 
             detector = build_frame_detector(config)
