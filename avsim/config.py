@@ -186,12 +186,7 @@ class CameraPreset:
 
     width_px: int
     height_px: int
-    fovy_deg: float
-
-    @property
-    def f_px(self) -> float:
-        """Focal length [px]: (H/2) / tan(fovy/2)."""
-        return focal_length_px(self.height_px, self.fovy_deg)
+    fovy_deg: float  # its intrinsics: sensors.camera.Intrinsics
 
 
 def vertical_fov_deg(width_px: int, height_px: int, hfov_deg: float) -> float:
@@ -208,7 +203,6 @@ CAMERA_PRESETS = {
     "study": CameraPreset(640, 480, 30.0),
     "automotive_1080p": CameraPreset(1920, 1080, vertical_fov_deg(1920, 1080, AUTOMOTIVE_HFOV_DEG)),
 }
-STUDY_CAMERA = CAMERA_PRESETS["study"]
 
 
 @dataclass(frozen=True)

@@ -13,14 +13,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from avsim.config import STUDY_CAMERA, CameraConfig, PerceptionConfig
+from avsim.config import CameraConfig, PerceptionConfig
 from avsim.sensors.camera import intrinsics_for
 
 Region = tuple[int, int, int, int]  # (x0, y0, x1, y1) [px]
 
 # The region's inner edges as tan(angle) off the optical axis (x right, y down), from the study's pixels.
-FRONT_LEFT_TAN = (288 - STUDY_CAMERA.width_px / 2) / STUDY_CAMERA.f_px  # 2.0 deg left of the axis
-BELOW_HORIZON_TAN = (256 - STUDY_CAMERA.height_px / 2) / STUDY_CAMERA.f_px  # 1.0 deg below the horizon
+_STUDY = intrinsics_for("front", CameraConfig(preset="study"))
+FRONT_LEFT_TAN = (288 - _STUDY.principal_point_px[0]) / _STUDY.f_px  # 2.0 deg left of the axis
+BELOW_HORIZON_TAN = (256 - _STUDY.principal_point_px[1]) / _STUDY.f_px  # 1.0 deg below the horizon
 
 
 def deployed_region_px(camera: str, config: CameraConfig) -> Region:
