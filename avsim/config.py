@@ -181,17 +181,51 @@ class VehicleConfig:
 
 
 @dataclass(frozen=True)
+class CameraPreset:
+    """A camera's sensor and lens: resolution [px] and vertical field of view [deg] (MuJoCo's fovy)."""
+
+    width_px: int
+    height_px: int
+    fovy_deg: float  # its intrinsics: sensors.camera.Intrinsics
+
+
+def vertical_fov_deg(width_px: int, height_px: int, hfov_deg: float) -> float:
+    """The vertical field of view [deg] of a square-pixel pinhole camera with horizontal field of view `hfov_deg`."""
+    return math.degrees(2 * math.atan(math.tan(math.radians(hfov_deg) / 2) * height_px / width_px))
+
+
+# The camera presets (camera.preset). "study": the study's 640x480 at a 30 deg vertical field of view
+# (39.3 deg horizontal), today's default. "automotive_1080p": a modern automotive front camera, 1920x1080
+# (a 2 MP sensor) at a stated 55 deg horizontal field of view, the middle of the 50-60 deg that the main
+# (not the wide, not the narrow) front cameras of ADAS units span; f = 1844 px, 2.06x the study's 896 px.
+AUTOMOTIVE_HFOV_DEG = 55.0
+CAMERA_PRESETS = {
+    "study": CameraPreset(640, 480, 30.0),
+    "automotive_1080p": CameraPreset(1920, 1080, vertical_fov_deg(1920, 1080, AUTOMOTIVE_HFOV_DEG)),
+}
+
+
+@dataclass(frozen=True)
 class CameraConfig:
     """Both cameras share a resolution. fovy is MuJoCo's vertical field of view.
 
-    At the defaults f_px = 240 / tan(15 deg) = 896 px, so the 0.762 m stop sign is
+    `preset` names the sensor and lens (CAMERA_PRESETS); width_px, height_px, fovy_deg and
+    side_fovy_deg left at 0 take the preset's values, and one set beside the preset overrides it.
+    At the default ("study") f_px = 240 / tan(15 deg) = 896 px, so the 0.762 m stop sign is
     17 px tall at 40 m.
     """
 
-    width_px: int = ranged(640, 64, 4096, unit="px")
-    height_px: int = ranged(480, 64, 4096, unit="px")
-    fovy_deg: float = ranged(30.0, 1, 150, unit="deg")
-    side_fovy_deg: float = ranged(30.0, 1, 150, unit="deg")
+    # The sensor and lens (CAMERA_PRESETS): "study" is the study's 640x480 at fovy 30 deg (39.3 deg
+    # horizontal, f = 896 px), every existing result's camera; "automotive_1080p" a modern automotive
+    # front camera, 1920x1080 at 55 deg horizontal (fovy 32.6 deg, f = 1844 px). The intrinsics, the
+    # pinhole range estimate, the regions of interest and the recorders follow it (docs/realism.md).
+    preset: str = "study"
+    # width_px, height_px, fovy_deg, side_fovy_deg: 0 takes the preset's value (resolved on construction,
+    # so a saved config holds the numbers); another value overrides the preset's.
+    width_px: int = ranged(0, 0, 4096, unit="px", note="0 = the preset's; else at least 64")
+    height_px: int = ranged(0, 0, 4096, unit="px", note="0 = the preset's; else at least 64")
+    fovy_deg: float = ranged(0.0, 0, 150, unit="deg", note="0 = the preset's")
+    side_fovy_deg: float = ranged(0.0, 0, 150, unit="deg", note="0 = the preset's")
     side_yaw_deg: float = ranged(20.0, -90, 90, unit="deg")  # towards the right-hand roadside
     # Multisampling costs about half the frame rate on llvmpipe; off by default.
     offsamples: int = 0
@@ -207,8 +241,21 @@ class CameraConfig:
     # The ISP's JPEG encoding at this quality, after the sensor noise (0: frames stay uncompressed).
     jpeg_quality: int = ranged(0, 0, 100)
 
+    # The keys that a preset fills (with_overrides resets those not set beside a new preset).
+    PRESET_KEYS: typing.ClassVar[tuple[str, ...]] = ("width_px", "height_px", "fovy_deg", "side_fovy_deg")
+
     def __post_init__(self) -> None:
+        _require(self.preset in CAMERA_PRESETS, f"camera.preset must be one of {', '.join(CAMERA_PRESETS)}, got {self.preset!r}")
+        preset = CAMERA_PRESETS[self.preset]
+        for key, value in (("width_px", preset.width_px), ("height_px", preset.height_px),
+                           ("fovy_deg", preset.fovy_deg), ("side_fovy_deg", preset.fovy_deg)):
+            if getattr(self, key) == 0:
+                object.__setattr__(self, key, value)
         check_ranges(self, "camera")
+        for key in ("width_px", "height_px"):
+            _require(getattr(self, key) >= 64, f"camera.{key} must be 0 (the preset's) or an integer in [64, 4096], got {getattr(self, key)}")
+        for key in ("fovy_deg", "side_fovy_deg"):
+            _require(getattr(self, key) >= 1, f"camera.{key} must be 0 (the preset's) or in [1, 150], got {getattr(self, key)}")
         _require(self.offsamples in OFFSAMPLES, f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
         _require(self.seg_supersample in SEG_SUPERSAMPLES, f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
         _require(self.supersample in SUPERSAMPLES, f"camera.supersample must be 1, 2, 3 or 4, got {self.supersample}")
@@ -295,12 +342,15 @@ class PerceptionConfig:
     # region plus `detector.roi.CONTEXT_PX` of context instead of the whole frame. Inside the
     # region every score and box equals the whole-frame network's, bit for bit (the context
     # covers the receptive field); non-maximum suppression then runs among the region's boxes.
-    # The defaults hold every stop sign of the study's towns and placements, which stand right
-    # of the road and above the camera: the front camera sees them right of x = 320 and both
-    # cameras above the horizon (y = 240), and the car's nose dive under braking only lifts
-    # them. (0, 0, width, height) is the whole frame; a region is clipped to the image.
-    front_roi_px: tuple[int, int, int, int] = (288, 0, 640, 256)
-    side_roi_px: tuple[int, int, int, int] = (0, 0, 640, 256)  # the side camera's region, as front_roi_px
+    # [] (the default) is the camera's deployed region (avsim/sensors/regions.py), an angular region
+    # that follows camera.preset: every stop sign of the study's towns and placements stands right
+    # of the road and above the camera, so the front region spans from 2.0 deg left of the optical
+    # axis to the frame's right edge, and both regions from the frame's top to 1.0 deg below the
+    # horizon (the car's nose dive under braking only lifts the signs). In the study camera's
+    # 640x480 pixels that is [288, 0, 640, 256] (front) and [0, 0, 640, 256] (side). A set region is
+    # in the camera's pixels ([0, 0, width, height] is the whole frame) and is clipped to the image.
+    front_roi_px: tuple[int, ...] = ()
+    side_roi_px: tuple[int, ...] = ()  # the side camera's region, as front_roi_px
     # `coco`: how a frame becomes the network's input. "resize": the whole frame squeezed to
     # 512x512, exactly as @vladmandic/human feeds the graph; "crop": the region of interest at
     # the camera's resolution; "upscale": that region enlarged by coco_upscale. Boxes are
@@ -354,6 +404,10 @@ class PerceptionConfig:
     def __post_init__(self) -> None:
         check_ranges(self, "perception")
         for key in ("front_roi_px", "side_roi_px"):
+            if getattr(self, key) == ():
+                continue  # the camera's deployed region
+            _require(len(getattr(self, key)) == 4, f"perception.{key} must be [] (the camera's deployed region) or "
+                     f"[x0, y0, x1, y1] [px], got {list(getattr(self, key))}")
             x0, y0, x1, y1 = getattr(self, key)
             _require(0 <= x0 < x1 and 0 <= y0 < y1,
                      f"perception.{key} must be [x0, y0, x1, y1] with 0 <= x0 < x1 and 0 <= y0 < y1 [px], got {list(getattr(self, key))}")
@@ -472,6 +526,9 @@ def with_overrides(config: C, overrides: Mapping[str, Any], _path: str = "") -> 
             changes[key] = with_overrides(current, value, f"{dotted}.")
         else:
             changes[key] = _coerce(value, hints[key], dotted)
+    if "preset" in overrides:  # a new preset fills the keys not set beside it (CameraConfig.PRESET_KEYS)
+        for key in getattr(config, "PRESET_KEYS", ()):
+            changes.setdefault(key, type(getattr(config, key))(0))
     return dataclasses.replace(config, **changes)  # type: ignore[type-var]
 
 

@@ -42,6 +42,7 @@ CHOICES: dict[str, Any] = {
     "scenario.distractors": config_module.DISTRACTORS,
     "scenario.map_error": config_module.MAP_ERRORS,
     "scenario.materials": config_module.MATERIALS,
+    "camera.preset": tuple(config_module.CAMERA_PRESETS),
     "camera.offsamples": config_module.OFFSAMPLES,
     "camera.seg_supersample": config_module.SEG_SUPERSAMPLES,
     "camera.supersample": config_module.SUPERSAMPLES,

@@ -55,7 +55,7 @@ class ClosedLoop:
         self.data = mujoco.MjData(self.model)
         self.vehicle = Vehicle(self.model, self.data, config.vehicle)
         self.rig = CameraRig(self.model, config.camera, fog=config.scenario.fog_end_m > 0)
-        self.perception = build_perception(config.perception, self.model, self.scene, config.scenario.seed, detectors)
+        self.perception = build_perception(config.perception, config.camera, self.model, self.scene, config.scenario.seed, detectors)
         context = PolicyContext(
             cameras={name: self._camera_model(name) for name in CAMERA_NAMES},
             control_dt_s=config.loop.control_dt_s,

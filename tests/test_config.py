@@ -171,6 +171,34 @@ def test_camera_focal_length_follows_height_and_fovy():
     assert abs(cam.f_px - 360 / math.tan(math.radians(30))) < 1e-9
 
 
+def test_the_study_preset_is_the_camera_of_every_existing_result():
+    assert CameraConfig() == CameraConfig(preset="study", width_px=640, height_px=480, fovy_deg=30.0, side_fovy_deg=30.0)
+
+
+def test_the_automotive_preset_is_1920x1080_at_55_deg_horizontal():
+    cam = CameraConfig(preset="automotive_1080p")
+    assert (cam.width_px, cam.height_px) == (1920, 1080)
+    assert cam.fovy_deg == cam.side_fovy_deg
+    assert cam.f_px == pytest.approx(960 / math.tan(math.radians(27.5)), rel=1e-12)
+    assert cam.f_px == pytest.approx(540 / math.tan(math.radians(cam.fovy_deg / 2)), rel=1e-12)
+
+
+def test_a_preset_set_by_override_fills_the_keys_not_set_beside_it():
+    automotive = with_overrides(SimConfig(), {"camera": {"preset": "automotive_1080p", "fovy_deg": 20.0}}).camera
+    assert (automotive.width_px, automotive.height_px, automotive.fovy_deg) == (1920, 1080, 20.0)
+    assert automotive.side_fovy_deg == CameraConfig(preset="automotive_1080p").side_fovy_deg
+    # Switching back takes the study's values, not the automotive ones left behind.
+    back = with_overrides(SimConfig(camera=automotive), {"camera": {"preset": "study"}}).camera
+    assert back == CameraConfig()
+    # A key without a preset keeps the default preset and overrides it.
+    assert with_overrides(SimConfig(), {"camera": {"width_px": 800}}).camera.height_px == 480
+
+
+def test_an_unknown_camera_preset_is_a_clear_error():
+    with pytest.raises(ConfigError, match="camera.preset must be one of study, automotive_1080p, got 'hd'"):
+        with_overrides(SimConfig(), {"camera": {"preset": "hd"}})
+
+
 def test_to_dict_round_trips_through_with_overrides():
     cfg = with_overrides(SimConfig(), {"scenario": {"town": "town10", "seed": 7}, "policy": {"name": "adjusted"}})
     d = cfg.to_dict()
@@ -180,6 +208,8 @@ def test_to_dict_round_trips_through_with_overrides():
 
 def test_default_to_dict_round_trips():
     assert with_overrides(SimConfig(), SimConfig().to_dict()) == SimConfig()
+    automotive = with_overrides(SimConfig(), {"camera": {"preset": "automotive_1080p"}})
+    assert with_overrides(SimConfig(), automotive.to_dict()) == automotive
 
 
 @pytest.mark.parametrize(
@@ -206,9 +236,9 @@ def test_a_region_of_interest_is_a_list_of_four_ints():
 
 
 @pytest.mark.parametrize("value, message", [
-    ([0, 0, 640], "must be a list of 4 ints"),
-    ([0, 0, 640.0, 480], "must be a list of 4 ints"),
-    ("0,0,640,480", "must be a list of 4 ints"),
+    ([0, 0, 640], r"must be \[\] \(the camera's deployed region\) or \[x0, y0, x1, y1\]"),
+    ([0, 0, 640.0, 480], "must be a list of ints"),
+    ("0,0,640,480", "must be a list of ints"),
     ([300, 0, 200, 480], "0 <= x0 < x1"),
     ([0, -1, 640, 480], "0 <= y0 < y1"),
 ])

@@ -22,3 +22,10 @@ def test_wilson_interval_matches_the_closed_form_and_stays_in_zero_one():
 def test_rate_with_interval_prints_count_and_interval():
     assert rate_with_interval(5, 5) == "5/5 (0.57–1.00)"
     assert rate_with_interval(0, 0) == "–"
+
+
+@pytest.mark.parametrize("n", range(1, 60))
+def test_wilson_bounds_are_exactly_0_and_1_at_no_hits_and_all_hits(n):
+    assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0
+    low, high = wilson_interval(n // 2, n)
+    assert low <= (n // 2) / n <= high

@@ -14,6 +14,7 @@ from avsim.config import COCO_INPUTS, COCO_PRECISIONS, SimConfig, with_overrides
 from avsim.bench.gym_env import print_env_rows, print_vector_rows
 from avsim.loop import ClosedLoop
 from avsim.runner import run_config
+from avsim.sensors.regions import regions_px
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
 
 
@@ -86,7 +87,7 @@ def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str, precision: str
 
     detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode,
                                                                         "coco_precision": precision}))
-    return _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
+    return _ms_per_frame(detector, _approach_frames(config), frames, regions_px(config.perception, config.camera)["front"])
 
 
 def _yolo_rows(config: SimConfig, frames: int) -> None:
@@ -99,7 +100,7 @@ def _yolo_rows(config: SimConfig, frames: int) -> None:
         for yolo_precision in COCO_PRECISIONS:
             detector = build_frame_detector(with_overrides(config.perception, {"kind": "yolo", "yolo_input": yolo_input,
                                                                                 "yolo_precision": yolo_precision}))
-            median_ms, p90_ms = _ms_per_frame(detector, _approach_frames(config), frames, config.perception.front_roi_px)
+            median_ms, p90_ms = _ms_per_frame(detector, _approach_frames(config), frames, regions_px(config.perception, config.camera)["front"])
             label = f"{yolo_input} {yolo_precision}" + (" (default)" if (yolo_input, yolo_precision) == default else "")
             print(f"  yolo, {label:24s} {config.perception.threads} thread  {median_ms:6.1f} ms median"
                   f"    (90th percentile {p90_ms:.1f} ms)")
@@ -174,9 +175,9 @@ def run_benchmarks(quick: bool = False) -> None:
     print_vector_rows((1, 8) if quick else (1, 8, 32), steps=10 if quick else 20)
     # The runs use perception.threads (1 by default: bit-identical everywhere, and a pool of
     # single-threaded workers fills the cores); 2 threads is what one run alone could use.
-    roi = base.perception.front_roi_px
+    roi = regions_px(base.perception, base.camera)["front"]
     for threads in sorted({base.perception.threads, 2}):
-        for label, region in (("whole 640x480 frame", None), (f"front region {list(roi)}", roi)):
+        for label, region in ((f"whole {base.camera.width_px}x{base.camera.height_px} frame", None), (f"front region {list(roi)}", roi)):
             median_ms, p90_ms = _detector_ms_per_frame(base, 50 if quick else 200, threads, region)
             print(f"  detector, {label:33s} {threads} thread{'s' if threads > 1 else ' '} {median_ms:6.1f} ms median"
                   f"    (90th percentile {p90_ms:.1f} ms; target <= 12)")

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import mujoco
 
-from avsim.config import PerceptionConfig
+from avsim.config import CameraConfig, PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.perception.base import NoPerception, Perception
 from avsim.perception.oracle import OraclePerception
@@ -21,8 +21,8 @@ if TYPE_CHECKING:
 # noise); detectors: where a pixel perception takes its network from (None: build its own).
 PerceptionFactory = Callable[[PerceptionConfig, mujoco.MjModel, SceneInfo, int, "FrameDetectorCache | None"], Perception]
 PERCEPTIONS: Registry[PerceptionFactory] = Registry("perception")
-PERCEPTIONS.add("oracle", lambda cfg, model, scene, seed, detectors: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
-PERCEPTIONS.add("none", lambda cfg, model, scene, seed, detectors: NoPerception())
+PERCEPTIONS.add("oracle", lambda cfg, camera, model, scene, seed, detectors: OraclePerception(model, scene.signs, cfg.oracle_min_box_height_px))
+PERCEPTIONS.add("none", lambda cfg, camera, model, scene, seed, detectors: NoPerception())
 
 
 # Perceptions that run on pixels alone, as frame detectors: config -> an object with
@@ -128,15 +128,16 @@ def networks_per_frame(config: PerceptionConfig) -> int:
     return {"oracle": 0, "ensemble": len(config.ensemble_members)}.get(config.kind, 1)
 
 
-def _frame_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int,
+def _frame_perception(config: PerceptionConfig, camera: CameraConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int,
                       detectors: FrameDetectorCache | None) -> Perception:
     from avsim.perception.frame import FramePerception
     from avsim.sensors.noise import SensorNoise
+    from avsim.sensors.regions import resolve_regions_px
 
     detector = build_frame_detector(config) if detectors is None else detectors.get(config)
     return FramePerception(config.kind, detector, config.min_box_height_px, config.threads,
                            SensorNoise(config.sensor_noise_std, seed),
-                           {"front": config.front_roi_px, "side": config.side_roi_px})
+                           resolve_regions_px({"front": config.front_roi_px, "side": config.side_roi_px}, camera))
 
 
 # The `perception.*` keys each kind reads besides `kind` (`avsim.config_owners` refuses a key set
@@ -183,8 +184,9 @@ PERCEPTIONS.add("onnx", _frame_perception)
 PERCEPTIONS.add("ensemble", _frame_perception)
 
 
-def build_perception(config: PerceptionConfig, model: mujoco.MjModel, scene: SceneInfo, seed: int = 0,
-                     detectors: FrameDetectorCache | None = None) -> Perception:
-    """The configured perception; `seed` (the run's scenario.seed) seeds its sensor noise; a pixel
-    perception takes its network from `detectors` when given (shared), else builds its own."""
-    return PERCEPTIONS.get(config.kind)(config, model, scene, seed, detectors)
+def build_perception(config: PerceptionConfig, camera: CameraConfig, model: mujoco.MjModel, scene: SceneInfo,
+                     seed: int = 0, detectors: FrameDetectorCache | None = None) -> Perception:
+    """The configured perception of the cameras `camera` (a pixel perception's regions of interest
+    follow it); `seed` (the run's scenario.seed) seeds its sensor noise; a pixel perception takes its
+    network from `detectors` when given (shared), else builds its own."""
+    return PERCEPTIONS.get(config.kind)(config, camera, model, scene, seed, detectors)

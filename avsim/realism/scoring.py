@@ -1,7 +1,7 @@
 """One frame, one network: what the benchmark keeps of its stop-sign detections.
 
-Each network looks at the camera's deployed region of interest (`perception.front_roi_px`,
-`side_roi_px`) with its default input and precision, as in the closed loop, with no range limit.
+Each network looks at the camera's deployed region of interest (avsim/sensors/regions.py, which
+follows camera.preset) with its default input and precision, as in the closed loop, with no range limit.
 At the threshold (the braking threshold, 0.5):
 - **found**: a `stop_sign` detection matches the labelled stop sign with IoU >= 0.5 (greedy, as AP);
 - **found_centred**: one is centred inside the labelled box (YOLOv3-tiny often boxes only the legend);
@@ -23,10 +23,9 @@ from avsim.config import PerceptionConfig
 from avsim.perception.ap import match_detections
 from avsim.realism.frame_set import Frame
 from avsim.sensors.camera import CameraRig
+from avsim.sensors.regions import deployed_region_px
 
 _COPY_NUMBER = re.compile(r"_?-?\d+")
-# Each camera's deployed region of interest, as the closed loop searches it.
-_REGIONS_PX = {"front": PerceptionConfig().front_roi_px, "side": PerceptionConfig().side_roi_px}
 
 
 def build_networks(names: tuple[str, ...]) -> dict[str, object]:
@@ -59,7 +58,7 @@ def score_frame(frame: Frame, detector: object, threshold: float, model: mujoco.
                 rig: CameraRig, segmentation: dict) -> dict:
     """The row of one frame for one network. `segmentation` caches the frame's geom-id image across
     networks (filled on the first false stop sign)."""
-    region = _REGIONS_PX[frame.camera]
+    region = deployed_region_px(frame.camera, rig.config)  # as the closed loop searches it
     stops = [d for d in detector.detect(frame.image, frame.camera, region_px=region) if d.class_name == "stop_sign"]
     scores = np.asarray([d.confidence for d in stops], float)
     boxes = np.asarray([d.box_xyxy_px for d in stops], float).reshape(-1, 4)

@@ -46,6 +46,8 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
     RenderSetting("photo", {"camera": _PHOTO}, "all three photographic stages: ss2, lens and jpeg"),
     RenderSetting("textured", {"scenario": {"materials": "textured"}},
                   "surfaces with procedural texture at the scale a camera resolves (asphalt, grass, leaves, facades)"),
+    RenderSetting("automotive_1080p", {"camera": {"preset": "automotive_1080p"}},
+                  "a modern automotive front camera: 1920x1080 at 55 deg horizontal field of view (f 1844 px against 896)"),
     RenderSetting("textured_photo", {"scenario": {"materials": "textured"}, "camera": _PHOTO}, "textured and photo together"),
 )})
 

@@ -61,16 +61,18 @@ def replay(bag: str | os.PathLike, perception_overrides: Mapping[str, Any] | Non
             if not images:
                 topics = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
                 raise BagError(f"bag {path} has no {IMAGE_TYPE} topic to replay (its topics: {topics})")
-            config = _perception_config(reader, perception_overrides or {})
+            config = _run_config(reader, perception_overrides or {})
             # A key the user set that this perception does not read on a bag's images is refused
             # before the first image (the bag's run decides the kind when the user names none).
-            check_read_on_images(config, perception_overrides or {}, "avsim replay", REPLAY_UNREAD)
+            check_read_on_images(config.perception, perception_overrides or {}, "avsim replay", REPLAY_UNREAD)
             from avsim.perception.factory import build_frame_detector
+            from avsim.sensors.regions import regions_px
 
-            detector = build_frame_detector(config)
+            detector = build_frame_detector(config.perception)
+            regions = regions_px(config.perception, config.camera)
             for connection, _, raw in reader.messages(connections=images):
                 message = reader.deserialize(raw, connection.msgtype)
-                yield _record(connection.topic, message, config, detector)
+                yield _record(connection.topic, message, config.perception, regions, detector)
     except AnyReaderError as exc:  # also a truncated or foreign file
         raise BagError(f"cannot read bag {path}: {exc}; pass an .mcap file or a ROS bag folder") from None
 
@@ -89,23 +91,24 @@ def detection_json(detection: Detection) -> dict[str, Any]:
             **({"source": detection.source} if detection.source else {})}
 
 
-def _perception_config(reader: Any, overrides: Mapping[str, Any]) -> PerceptionConfig:
-    """The bag's own run's perception settings (avsim's defaults without one), `overrides` on top."""
+def _run_config(reader: Any, overrides: Mapping[str, Any]) -> SimConfig:
+    """The bag's own run's camera and perception settings (avsim's defaults without one), `overrides`
+    on the perception's."""
     base = SimConfig()
     runs = [c for c in reader.connections if c.topic == RUN_TOPIC]
     for _, _, raw in reader.messages(connections=runs):
         recorded = json.loads(reader.deserialize(raw, runs[0].msgtype).data)["config"]
-        base = with_overrides(base, {"perception": recorded["perception"]})
-    return with_overrides(base, {"perception": dict(overrides)}).perception
+        base = with_overrides(base, {"camera": recorded["camera"], "perception": recorded["perception"]})
+    return with_overrides(base, {"perception": dict(overrides)})
 
 
-def _record(topic: str, message: Any, config: PerceptionConfig, detector: Any) -> dict[str, Any]:
+def _record(topic: str, message: Any, config: PerceptionConfig, regions: Mapping[str, tuple[int, int, int, int]],
+            detector: Any) -> dict[str, Any]:
     bgr = cv2.imdecode(np.asarray(message.data, dtype=np.uint8), cv2.IMREAD_COLOR)
     if bgr is None:
         raise BagError(f"an image on {topic} (format '{message.format}') cannot be decoded")
     rgb = np.ascontiguousarray(bgr[..., ::-1])
     camera = camera_of(topic)
-    regions = {"front": config.front_roi_px, "side": config.side_roi_px}
     detections = detector.detect(rgb, camera, region_px=regions.get(camera))
     kept = [d for d in detections if d.height_px >= config.min_box_height_px]
     stamp = message.header.stamp

@@ -110,6 +110,11 @@ class CameraRig:
         self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
         self._photo = PhotoModel.from_config(config)
 
+    @property
+    def config(self) -> CameraConfig:
+        """The cameras' config: resolution, fields of view and the photographic stages."""
+        return self._config
+
     def intrinsics(self, camera: str) -> Intrinsics:
         """The intrinsics of `camera` ("front" or "side")."""
         return intrinsics_for(camera, self._config)

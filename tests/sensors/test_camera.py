@@ -1,5 +1,6 @@
 """Cameras: intrinsics, poses, segmentation boxes against geometry, and rendered pixels."""
 
+import hashlib
 import math
 
 import cv2
@@ -160,3 +161,42 @@ def test_asking_again_for_the_same_state_gives_the_same_frame_and_a_new_state_a_
     finally:
         loop.close()
         fresh.close()
+
+
+# sha256 of the first front and side frames of a default run (town07, standard placement), as rendered
+# at ed65e80, before camera.preset existed: the study preset keeps every existing result's pixels.
+DEFAULT_RENDER_SHA256 = {"front": "c9344d252e107785c594ea5c7d6c678674af1edfa5f85a23aaa3ebbf9227bba2",
+                         "side": "dddeabda3b9635198ace362a2011d1b8a43d77744bc608fa7f11b6e26573715f"}
+
+
+def test_the_default_preset_renders_bit_identical_frames_to_before_presets():
+    loop = ClosedLoop(make_config())
+    try:
+        for camera, digest in DEFAULT_RENDER_SHA256.items():
+            assert hashlib.sha256(loop.rig.render_rgb(loop.data, camera).tobytes()).hexdigest() == digest
+    finally:
+        loop.close()
+
+
+@pytest.fixture(scope="module")
+def automotive_near_scene():
+    """The near placement seen by the automotive preset's 1920x1080 cameras."""
+    loop = ClosedLoop(make_config(scenario={"placement": "near"}, camera={"preset": "automotive_1080p"}))
+    yield loop
+    loop.close()
+
+
+@pytest.mark.parametrize("depth_m", [20.0, 60.0])
+def test_the_pinhole_range_follows_the_automotive_preset(automotive_near_scene, depth_m):
+    loop = automotive_near_scene
+    _put_camera_at_depth(loop, depth_m)
+    box = _stop_box(loop)
+    camera_model = loop.policy.context.cameras["front"]
+    # The policies' camera model and the recorders' intrinsics are the preset's.
+    assert camera_model.f_px == pytest.approx(loop.config.camera.f_px) and camera_model.cx_px == 960.0
+    assert loop.rig.intrinsics("front").matrix()[:2, 2].tolist() == [960.0, 540.0]
+    true_depth = loop.rig.pose(loop.data, "front").depth_m(loop.scene.stop_sign.face_center_m)
+    assert pinhole_distance_m(0.762, camera_model.f_px, box[3] - box[1]) == pytest.approx(true_depth, rel=0.05)
+    # At 2.06x the study's focal length the sign is 2.06x as tall as the study camera would see it.
+    assert box[3] - box[1] == pytest.approx(0.762 * loop.config.camera.f_px / true_depth, rel=0.05)
+    assert loop.rig.render_rgb(loop.data, "front").shape == (1080, 1920, 3)

@@ -129,7 +129,7 @@ def drive_by_frames(sign: str, detector: str = "detector", town: str = "town07",
                            "threads": 1}})
         loop = ClosedLoop(config)
         try:
-            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.model, loop.scene)
+            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.config.camera, loop.model, loop.scene)
             phase = np.random.default_rng((seed, _LIGHTING_STREAM + 1, drive)).random() * spacing_m
             for dist_m in np.arange(FAR_M - phase, NEAR_M, -spacing_m):
                 frame = _frame(loop, oracle, drive, float(dist_m))

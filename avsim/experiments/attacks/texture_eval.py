@@ -104,7 +104,7 @@ def evaluate_texture(sign: str, town: str, placements: tuple[str, ...], threshol
                                        "perception": {"kind": detector, "min_confidence": 0.05, "min_box_height_px": 1}})
         loop = ClosedLoop(config)
         try:
-            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.model, loop.scene)
+            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.config.camera, loop.model, loop.scene)
             fixed = {camera: {} for camera in CAMERAS}
             for dist_m in FIXED_DISTANCES_M:
                 _place(loop, dist_m)
@@ -145,7 +145,7 @@ def fig3_grid(signs: list[str], out_path: Path, town: str = "town07", placement:
         try:
             _place(loop, dist_m)
             image = loop.rig.render_rgb(loop.data, "front")[..., ::-1].copy()
-            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.model, loop.scene)
+            oracle = build_perception(PerceptionConfig(kind="oracle", oracle_min_box_height_px=1.0), loop.config.camera, loop.model, loop.scene)
             truth = [d for d in oracle.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"][0]
             found = [d for d in loop.perception.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"]
         finally:

@@ -41,10 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
-from avsim.config import COCO_INPUTS, COCO_PRECISIONS, PerceptionConfig
+from avsim.config import COCO_INPUTS, COCO_PRECISIONS, CameraConfig, PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.validation import OneLineArgumentParser, config_flag, number_flag
 from avsim.perception.ap import box_iou, match_detections
+from avsim.sensors.regions import regions_px
 from avsim.stats import wilson_interval
 
 BIN_EDGES_M = tuple(range(5, 65, 5))  # 5-10, ..., 55-60 m
@@ -64,7 +65,7 @@ def _init_worker(network: str, settings: tuple[tuple[str, str], ...], upscale: f
                                                         f"{network}_upscale": upscale}))
         for mode, precision in settings}
     defaults = PerceptionConfig()
-    _WORKER["regions"] = {"front": defaults.front_roi_px, "side": defaults.side_roi_px}
+    _WORKER["regions"] = regions_px(defaults, CameraConfig())  # make-data renders at the default camera
 
 
 def _score_frame(args: tuple[str, dict, float]) -> list[dict]:

@@ -15,6 +15,7 @@ from avsim.perception.coco.network import HEATMAP_NAME
 from avsim.perception.coco.infer import CocoRunner
 from avsim.perception.factory import build_frame_detector
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.sensors.regions import STUDY_REGIONS_PX
 
 # The largest deviations of bf16 from fp32 measured on 3000 make-data frames (docs/perception.md, "COCO CenterNet";
 # `python -m avsim.perception.coco.realism --modes upscale --precisions fp32,bf16`), between each fp32
@@ -53,7 +54,7 @@ def renders():
 def _stop_signs(runner: CocoRunner, frame: np.ndarray, camera: str) -> np.ndarray:
     """(n, 5): score, x0, y0, x1, y1 of the stop signs found in the camera's default region."""
     defaults = PerceptionConfig()
-    region = defaults.front_roi_px if camera == "front" else defaults.side_roi_px
+    region = STUDY_REGIONS_PX[camera]
     found = [d for d in runner.detect(frame, camera, region_px=region) if d.class_name == "stop_sign"]
     return np.array([[d.confidence, *d.box_xyxy_px] for d in found]).reshape(-1, 5)
 

@@ -27,7 +27,7 @@ def _iou(a, b) -> float:
 
 def _truth_and_found(loop: ClosedLoop, dist_m: float, camera: str = "front"):
     loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
-    oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=1.0), loop.model, loop.scene)
+    oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=1.0), loop.config.camera, loop.model, loop.scene)
     truth = [d for d in oracle.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
     found = [d for d in loop.perception.detect(loop.rig, loop.data, camera) if d.class_name == "stop_sign"]
     return truth, found

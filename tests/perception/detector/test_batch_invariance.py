@@ -11,8 +11,9 @@ from avsim.bench.speed import _approach_frames
 from avsim.config import SimConfig
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.weights import resolve_weights_path
+from avsim.sensors.regions import STUDY_REGIONS_PX
 
-FRONT_ROI = SimConfig().perception.front_roi_px
+FRONT_ROI = STUDY_REGIONS_PX["front"]
 
 
 @pytest.fixture(scope="module")

@@ -26,7 +26,7 @@ def test_clean_stop_sign_at_30_m_is_detected_within_3_px_of_the_segmentation_box
     loop = ClosedLoop(with_overrides(SimConfig(), {"scenario": {"town": town}, "perception": {"kind": "detector"}}))
     try:
         loop.vehicle.place(loop.scene.stop_line_x_m - 30.0 - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
-        oracle = build_perception(PerceptionConfig(kind="oracle"), loop.model, loop.scene)
+        oracle = build_perception(PerceptionConfig(kind="oracle"), loop.config.camera, loop.model, loop.scene)
         truth = [d for d in oracle.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"]
         found = [d for d in loop.perception.detect(loop.rig, loop.data, "front") if d.class_name == "stop_sign"]
     finally:

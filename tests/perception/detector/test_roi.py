@@ -14,9 +14,10 @@ from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 from avsim.perception.detector.postprocess import decode
 from avsim.perception.detector.roi import ALIGN_PX, CONTEXT_PX, clip_region, crop_for
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.sensors.regions import STUDY_REGIONS_PX
 
 DEFAULT = SimConfig().perception
-REGIONS = {"front default": DEFAULT.front_roi_px, "side default": DEFAULT.side_roi_px,
+REGIONS = {"front default": STUDY_REGIONS_PX["front"], "side default": STUDY_REGIONS_PX["side"],
            "centre": (200, 150, 440, 330), "bottom right": (400, 300, 640, 480)}
 
 
@@ -31,7 +32,7 @@ def test_crop_is_aligned_and_reaches_the_context_beyond_every_inner_edge(region)
 
 
 def test_default_front_crop_is_well_under_the_whole_frame():
-    x0, y0, x1, y1 = crop_for(DEFAULT.front_roi_px, 640, 480)
+    x0, y0, x1, y1 = crop_for(STUDY_REGIONS_PX["front"], 640, 480)
     assert (x1 - x0) * (y1 - y0) <= 0.65 * 640 * 480
 
 
@@ -100,13 +101,13 @@ def test_region_detections_equal_the_whole_frame_cells_in_the_region(runner, ren
         expected = [_key(d) for d in _whole_frame_then_region(runner, frame, camera, region)]
         assert [_key(d) for d in runner.detect(frame, camera, region_px=region)] == expected
         found_stop = found_stop or any(key[0] == "stop_sign" for key in expected)
-    if region in (DEFAULT.front_roi_px, DEFAULT.side_roi_px):
+    if region in (STUDY_REGIONS_PX["front"], STUDY_REGIONS_PX["side"]):
         assert found_stop, "the default region should hold the clean stop sign in these frames"
 
 
 def test_default_regions_hold_the_stop_sign_of_every_frame(runner, rendered_frames):
     for frame, camera in rendered_frames:
-        region = DEFAULT.front_roi_px if camera == "front" else DEFAULT.side_roi_px
+        region = STUDY_REGIONS_PX["front"] if camera == "front" else STUDY_REGIONS_PX["side"]
         whole = [_key(d) for d in runner.detect(frame, camera) if d.class_name == "stop_sign" and d.confidence >= 0.5]
         in_region = [_key(d) for d in runner.detect(frame, camera, region_px=region)]
         assert all(key in in_region for key in whole), f"{camera}: a confident stop sign lies outside the default region"

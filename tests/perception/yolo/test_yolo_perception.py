@@ -15,6 +15,7 @@ from avsim.perception.factory import build_frame_detector, build_perception
 from avsim.perception.yolo import fetch
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import TOWNS
+from avsim.sensors.regions import STUDY_REGIONS_PX
 
 THRESHOLD = SimConfig().policy.conf_threshold
 
@@ -42,7 +43,7 @@ def _frame_and_truth(dist_m: float, town: str = "town07", camera: str = "front")
 @pytest.mark.parametrize("town", TOWNS.names())
 def test_yolo_finds_the_clean_stop_sign_at_10_to_20_m_in_every_town(town):
     loop = ClosedLoop(with_overrides(SimConfig(), {"scenario": {"town": town}, "perception": {"kind": "yolo"}}))
-    oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=1.0), loop.model, loop.scene)
+    oracle = build_perception(PerceptionConfig(kind="oracle", min_box_height_px=1.0), loop.config.camera, loop.model, loop.scene)
     try:
         assert loop.perception.name == "yolo"
         for dist_m in (10.0, 15.0, 20.0):
@@ -61,7 +62,7 @@ def test_every_input_mode_finds_the_sign_at_10_m_and_reports_only_boxes_centred_
     """On the sign: its box centred inside the sign's (YOLOv3-tiny often boxes only the legend, at any input)."""
     frame, truth = _frame_and_truth(10.0)
     config = PerceptionConfig(kind="yolo", yolo_input=mode)
-    region = config.front_roi_px
+    region = STUDY_REGIONS_PX["front"]
     found = build_frame_detector(config).detect(frame, "front", region_px=region)
     stops = [d for d in found if d.class_name == "stop_sign" and _centred_on(d.box_xyxy_px, truth[0].box_xyxy_px)]
     assert stops and stops[0].confidence >= THRESHOLD, found
@@ -76,7 +77,7 @@ def test_bf16_finds_the_same_sign_with_a_close_score():
     scores = {}
     for precision in ("fp32", "bf16"):
         found = build_frame_detector(PerceptionConfig(kind="yolo", yolo_precision=precision)).detect(
-            frame, "front", region_px=PerceptionConfig().front_roi_px)
+            frame, "front", region_px=STUDY_REGIONS_PX["front"])
         scores[precision] = max(d.confidence for d in found if d.class_name == "stop_sign"
                                 and _iou(d.box_xyxy_px, truth[0].box_xyxy_px) >= 0.5)
     assert abs(scores["fp32"] - scores["bf16"]) <= 0.05, scores
@@ -89,7 +90,7 @@ def test_a_users_own_darknet_files_load_through_the_config(tmp_path):
         shutil.copy(path, tmp_path / f"mine{path.suffix}")
     own = PerceptionConfig(kind="yolo", yolo_cfg=str(tmp_path / "mine.cfg"), yolo_weights=str(tmp_path / "mine.weights"),
                            yolo_names=str(tmp_path / "mine.names"))
-    region = own.front_roi_px
+    region = STUDY_REGIONS_PX["front"]
     assert (build_frame_detector(own).detect(frame, "front", region_px=region)
             == build_frame_detector(PerceptionConfig(kind="yolo")).detect(frame, "front", region_px=region))
 
@@ -167,7 +168,7 @@ def test_a_three_network_ensemble_with_two_votes_fuses_yolo_with_the_others():
     frame, truth = _frame_and_truth(12.0)
     config = PerceptionConfig(kind="ensemble", ensemble_members=("detector", "coco", "yolo"), ensemble_fusion="k_of_n",
                               ensemble_k=2)
-    found = build_frame_detector(config).detect(frame, "front", region_px=config.front_roi_px)
+    found = build_frame_detector(config).detect(frame, "front", region_px=STUDY_REGIONS_PX["front"])
     stops = [d for d in found if d.class_name == "stop_sign"]
     assert stops and stops[0].confidence >= THRESHOLD and _centred_on(stops[0].box_xyxy_px, truth[0].box_xyxy_px)
     assert stops[0].source.count("+") >= 1 and "yolo" in {m for d in stops for m in d.source.split("+")}

@@ -30,6 +30,7 @@ from avsim.perception.coco.preprocess import image_tensor
 from avsim.perception.yolo import fetch
 from avsim.perception.yolo.model import PIXEL_SCALE, load_yolo
 from avsim.perception.yolo.preprocess import network_input
+from avsim.sensors.regions import STUDY_REGIONS_PX
 from tests.perception.reference_renders import render_views
 
 REFERENCE_DIR = Path(__file__).parent / "opencv_reference"
@@ -67,7 +68,7 @@ def test_reader_matches_opencv_darknet_importer_on_21_renders(side_python, tmp_p
     cfg_path, weights_path, _ = fetch.model_paths()
     frames = render_views()
     assert len(frames) >= 20 and {name.split("/")[2] for name, _ in frames} == {"front", "side"}
-    front_roi = PerceptionConfig().front_roi_px
+    front_roi = STUDY_REGIONS_PX["front"]
     inputs, ours = [], []
     for i, (name, frame) in enumerate(frames):
         if "/front/" in name:
