@@ -157,14 +157,15 @@ class Leaderboard:
                                   if scenario.defences is None or defence.name in scenario.defences)
         return total
 
-    def runs(self, quick: bool = False) -> list[LeaderboardRun]:
-        """Every run of the matrix (with `quick`, each place's and scenario's quick_seeds), defence by defence."""
+    def runs(self, quick: bool = False, first_seed_only: bool = False) -> list[LeaderboardRun]:
+        """Every run of the matrix (with `quick`, each place's and scenario's quick_seeds), defence by defence;
+        first_seed_only: only each one's seed 0 (the configs to check, not to run)."""
         runs = []
         for defence in self.defences:
             for place in self.places:
                 for name in CONDITIONS:
                     config = self.compose(place_overrides(place), defence.overrides, self.condition(defence, name).overrides)
-                    for seed in range(place.quick_seeds if quick else place.seeds):
+                    for seed in range(min(1, place.seeds) if first_seed_only else place.quick_seeds if quick else place.seeds):
                         runs.append(LeaderboardRun(defence.name, SAFETY, name, place.label, seed,
                                                    config_at_seed(config, self.vary, seed)))
             for scenario in self.availability:
@@ -172,7 +173,8 @@ class Leaderboard:
                     continue
                 config = self.compose({}, defence.overrides, scenario.overrides)
                 where = f"{config.scenario.town} {config.scenario.placement}"
-                for seed in range(scenario.quick_seeds if quick else scenario.seeds):
+                for seed in range(min(1, scenario.seeds) if first_seed_only else scenario.quick_seeds if quick
+                                  else scenario.seeds):
                     runs.append(LeaderboardRun(defence.name, AVAILABILITY, scenario.name, where, seed,
                                                config_at_seed(config, self.vary, seed)))
         return runs
@@ -330,7 +332,7 @@ def _unique(path: Path, key: str, names: list[str]) -> None:
 def _check_keys_read(board: Leaderboard, defaults: Mapping[str, Any]) -> None:
     """A defence's policy and perception keys are read by its runs; those of [defaults] and [vary]
     by some run of the board (`avsim.config_owners`)."""
-    runs = [run for run in board.runs() if not run.seed]
+    runs = board.runs(first_seed_only=True)
     with located(board.path, "[defaults] and [vary]"):
         check_read_by_some((run.config for run in runs), set_keys(defaults) | {key for key, _, _ in board.vary})
     for defence in board.defences:
@@ -343,9 +345,8 @@ def _check_keys_read(board: Leaderboard, defaults: Mapping[str, Any]) -> None:
 def _check_runs(board: Leaderboard) -> None:
     """Every run's config (both seed counts give the same configs up to the seed), its registry
     names and sign texture, and whether it requires a stop."""
-    for run in board.runs():
-        if run.seed:
-            continue  # the same config as seed 0 but for the seed and its [vary] draw, both checked by config_at_seed
+    # Seed k's config is seed 0's but for the seed and its [vary] draw, both checked by config_at_seed.
+    for run in board.runs(first_seed_only=True):
         with located(board.path, f'run "{run.label}"'):
             check_run_names(run.config)
             required = run.config.scenario.stop_required
