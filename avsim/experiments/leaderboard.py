@@ -150,10 +150,10 @@ class Leaderboard:
 
     def size(self, quick: bool = False) -> int:
         """How many runs `runs(quick)` holds, counted without building them."""
-        safety = sum(place.quick_seeds if quick else place.seeds for place in self.places) * len(CONDITIONS)
+        safety = sum(_seed_count(place, quick) for place in self.places) * len(CONDITIONS)
         total = 0
         for defence in self.defences:
-            total += safety + sum(scenario.quick_seeds if quick else scenario.seeds for scenario in self.availability
+            total += safety + sum(_seed_count(scenario, quick) for scenario in self.availability
                                   if scenario.defences is None or defence.name in scenario.defences)
         return total
 
@@ -165,7 +165,7 @@ class Leaderboard:
             for place in self.places:
                 for name in CONDITIONS:
                     config = self.compose(place_overrides(place), defence.overrides, self.condition(defence, name).overrides)
-                    for seed in range(min(1, place.seeds) if first_seed_only else place.quick_seeds if quick else place.seeds):
+                    for seed in range(_seed_count(place, quick, first_seed_only)):
                         runs.append(LeaderboardRun(defence.name, SAFETY, name, place.label, seed,
                                                    config_at_seed(config, self.vary, seed)))
             for scenario in self.availability:
@@ -173,8 +173,7 @@ class Leaderboard:
                     continue
                 config = self.compose({}, defence.overrides, scenario.overrides)
                 where = f"{config.scenario.town} {config.scenario.placement}"
-                for seed in range(min(1, scenario.seeds) if first_seed_only else scenario.quick_seeds if quick
-                                  else scenario.seeds):
+                for seed in range(_seed_count(scenario, quick, first_seed_only)):
                     runs.append(LeaderboardRun(defence.name, AVAILABILITY, scenario.name, where, seed,
                                                config_at_seed(config, self.vary, seed)))
         return runs
@@ -185,6 +184,14 @@ class Leaderboard:
         for layer in layers:
             merged = deep_merge(merged, layer)
         return with_overrides(self.base, merged)
+
+
+def _seed_count(entry: Place | Availability, quick: bool, first_seed_only: bool = False) -> int:
+    """How many seeds of a place or availability scenario a plan runs: its quick_seeds or seeds, or
+    only seed 0 (first_seed_only, for checking the configs)."""
+    if first_seed_only:
+        return min(1, entry.seeds)
+    return entry.quick_seeds if quick else entry.seeds
 
 
 def unique_specs(leaderboard: Leaderboard, runs: list[LeaderboardRun]) -> list[RunSpec]:
