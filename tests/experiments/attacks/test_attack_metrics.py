@@ -97,13 +97,14 @@ def test_the_attack_experiment_files_load_with_their_seeds():
                 "success_coco.toml": (20, "attack_success"), "success_coco_towns.toml": (5, "attack_success"),
                 "range_inflation_adjusted.toml": (20, "attack_success"),
                 "driveby_detector_town07.toml": (20, "attack_success"),
-                "sensitivity_coco_town10.toml": (5, "sensitivity")}
+                "sensitivity_coco_town10.toml": (5, "sensitivity"),
+                "success_yolo.toml": (20, "attack_success"), "success_yolo_towns.toml": (5, "attack_success")}
     assert sorted(p.name for p in ATTACK_EXPERIMENTS.glob("*.toml")) == sorted(expected)
     for name, (seeds, report) in expected.items():
         experiment = load_experiment(ATTACK_EXPERIMENTS / name)
         assert experiment.seeds == seeds and experiment.report == report
         assert any(c.config.scenario.sign == "clean" for c in experiment.cells)  # the pair for the braking delay
-    for name in ("success_towns.toml", "success_coco_towns.toml"):
+    for name in ("success_towns.toml", "success_coco_towns.toml", "success_yolo_towns.toml"):
         towns = load_experiment(ATTACK_EXPERIMENTS / name)
         cells = {(c.config.scenario.town, c.config.scenario.placement) for c in towns.cells}
         assert len(cells) == 8 and ("town07", "standard") not in cells
@@ -125,6 +126,23 @@ def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_un
             signs_by_place.setdefault(place, set()).add(c.config.scenario.sign)
         assert len(signs_by_place) == places, name
         assert all(signs == shipped for signs in signs_by_place.values()), name
+
+
+def test_the_yolo_transfer_files_pair_the_clean_sign_with_the_own_detectors_drive_by_texture_in_every_cell():
+    """Issue 29: does a texture made against avsim's own detector make baseline run the sign under YOLOv3-tiny?
+    20 seeds in Town07 standard, 5 in each other cell."""
+    places_seen = set()
+    for name, places in (("success_yolo.toml", 1), ("success_yolo_towns.toml", 8)):
+        experiment = load_experiment(ATTACK_EXPERIMENTS / name)
+        assert {c.config.perception.kind for c in experiment.cells} == {"yolo"}
+        assert {c.config.policy.name for c in experiment.cells} == {"baseline"}
+        signs_by_place: dict = {}
+        for c in experiment.cells:
+            signs_by_place.setdefault((c.config.scenario.town, c.config.scenario.placement), set()).add(c.config.scenario.sign)
+        assert len(signs_by_place) == places
+        assert all(signs == {"clean", "driveby_detector"} for signs in signs_by_place.values())
+        places_seen |= set(signs_by_place)
+    assert len(places_seen) == 9
 
 
 def test_a_texture_source_names_its_detector_and_the_purification_it_went_through():
