@@ -67,8 +67,9 @@ def add_commands(sub) -> None:
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
     rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
     rep.add_argument("--all", action="store_true",
-                     help="also every other experiment file: the sensitivity, the COCO network's closed loop and the "
-                          "attack-success files (hours on 2 cores; the leaderboard is `avsim leaderboard`)")
+                     help="also every other experiment file but the YOLOv3-tiny ones: the sensitivity, the COCO network's "
+                          "closed loop and Table III, and the attack-success files (hours on 2 cores; the YOLO files "
+                          "run by name with --experiments; the leaderboard is `avsim leaderboard`)")
     _add_pool_flags(rep, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                          "with --address, at most this many in flight", BACKEND_HELP)
     add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")

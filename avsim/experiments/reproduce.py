@@ -43,9 +43,12 @@ STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_a
                      "fig3_detection", "adaptive_attacker", "wet_road")
 # `avsim reproduce --all` adds every other experiment file: the constant sensitivity, the COCO
 # network's closed loop, and the attack files (experiments/attacks/); paths relative to EXPERIMENTS_DIR.
-MORE_EXPERIMENTS = ("sensitivity", "coco_detector", "attacks/success_town07", "attacks/success_towns",
+MORE_EXPERIMENTS = ("sensitivity", "coco_detector", "table3_coco", "attacks/success_town07", "attacks/success_towns",
                     "attacks/range_inflation_adjusted", "attacks/driveby_detector_town07", "attacks/success_coco",
                     "attacks/success_coco_towns", "attacks/sensitivity_coco_town10")
+# The YOLOv3-tiny files, run by name (`--experiments`): YOLOv3-tiny is avsim's slowest perception (0.1-0.2x
+# real time a run on this CPU; docs/yolo.md), and these 370 runs would add hours to `--all`.
+YOLO_EXPERIMENTS = ("yolo_detector", "table3_yolo", "attacks/success_yolo", "attacks/success_yolo_towns")
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,

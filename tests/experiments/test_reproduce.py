@@ -6,7 +6,8 @@ import pytest
 
 from avsim import cli
 from avsim.experiments.recordings import slug
-from avsim.experiments.reproduce import load_study, reproduce
+from avsim.experiments.reproduce import (EXPERIMENTS_DIR, MORE_EXPERIMENTS, STUDY_EXPERIMENTS, YOLO_EXPERIMENTS,
+                                          load_study, reproduce)
 from avsim.experiments.results_file import read_records
 
 # The study's Table III cell names, so the report sets them beside the study's figures.
@@ -74,6 +75,15 @@ def test_report_sets_the_study_beside_ours_and_links_the_figures(results):
     for figure in ("speed_vs_distance.png", "stop_positions.png", "confidence_vs_distance.png"):
         assert (results / figure).stat().st_size > 10_000
         assert f"]({figure})" in report
+
+
+def test_every_experiment_file_is_in_the_study_in_all_or_among_the_yolo_files_run_by_name():
+    """No file is left out of `avsim reproduce --all` without a name saying why."""
+    shipped = {p.relative_to(EXPERIMENTS_DIR).with_suffix("").as_posix() for p in EXPERIMENTS_DIR.rglob("*.toml")}
+    groups = (STUDY_EXPERIMENTS, MORE_EXPERIMENTS, YOLO_EXPERIMENTS)
+    listed = [name for group in groups for name in group]
+    assert len(listed) == len(set(listed))
+    assert set(listed) == shipped - {p for p in shipped if p.startswith(("sweeps/", "leaderboards/"))}
 
 
 def test_quick_keeps_one_seed_per_cell(tmp_path):
