@@ -115,6 +115,8 @@ def _cell(text: str) -> str:
 
 
 def section_table(section: str, instance: Any) -> list[str]:
+    """The Markdown table lines of one config section (`section`, e.g. "camera", and its default
+    dataclass `instance`): a row per key with type, unit, range or choices, default, readers, meaning."""
     cls = type(instance)
     hints = typing.get_type_hints(cls)
     comments = field_comments(cls)
@@ -182,6 +184,7 @@ def generate() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """`python -m avsim.config_reference`: print, write (--out) or check (--check) the page; returns the exit status."""
     parser = OneLineArgumentParser(prog=PROG, description="Write or check docs/config.md, the reference of every config key.")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--out", help="write the page here (default: print it)")
