@@ -162,10 +162,11 @@ def _conditional_on(key: str, keys: Iterable[str]) -> bool:
     return key in CONDITIONAL_KEYS and CONDITIONAL_KEYS[key][0] in keys
 
 
-def _unseen_camera(dotted: str, sight: Sight) -> str | None:
-    """The camera the run's perception does not see through that keeps it from reading the
-    perception key `dotted` ("" for any camera: the run sees through none), else None."""
-    if dotted.split(".", 1)[0] != "perception" or dotted in EVERY_RUN_READS:
+def _unseen_camera(config: SimConfig, dotted: str, sight: Sight) -> str | None:
+    """The camera whose absence alone keeps the run from reading the perception key `dotted`, which
+    its perception's kind reads: "" when it sees through no camera, "side" for the side region;
+    None when the cameras are not the reason."""
+    if dotted in EVERY_RUN_READS or dotted not in perception_reads(config.perception):
         return None
     if not sight.cameras:
         return ""
@@ -179,8 +180,8 @@ def _this_run(config: SimConfig, dotted: str, sight: Sight) -> str:
         return RUN_CONDITIONS[dotted].unmet(config, sight)
     if section == "policy" or dotted in MAP_KEYS:
         return f"policy is {config.policy.name}"
-    camera = _unseen_camera(dotted, sight)
-    if camera is not None and dotted in perception_reads(config.perception):  # its kind reads it, through a camera not seen
+    camera = _unseen_camera(config, dotted, sight)
+    if camera is not None:
         if sight.agent:
             return f"perception sees through the {' and '.join(sight.cameras)} camera only"
         return f"policy is {sight.policy}, which " + ("uses no camera" if camera == "" else f"does not use the {camera} camera")
@@ -208,8 +209,8 @@ def _fix(config: SimConfig, dotted: str, sight: Sight) -> str:
     section, key = dotted.split(".", 1)
     if dotted in RUN_CONDITIONS:
         return RUN_CONDITIONS[dotted].fix
-    if dotted in perception_reads(config.perception) and _unseen_camera(dotted, sight) is not None:
-        camera = _unseen_camera(dotted, sight)
+    camera = _unseen_camera(config, dotted, sight)
+    if camera is not None:
         return f"choose a policy that uses the {camera} camera" if camera else "choose a policy that uses a camera"
     if key in CONDITIONAL_KEYS and section == "perception":
         switch, value = CONDITIONAL_KEYS[key]
@@ -222,6 +223,8 @@ def _fix_any(dotted: str) -> str:
     """How to make some run read `dotted`: choose an owner, or meet its condition."""
     if dotted in RUN_CONDITIONS:
         return RUN_CONDITIONS[dotted].fix
+    if dotted == REGION_KEYS["side"]:
+        return "choose a pixel perception and a policy that uses the side camera"
     return f"choose a {'policy' if dotted in MAP_KEYS else dotted.split('.')[0]} that reads it"
 
 

@@ -19,7 +19,7 @@ from avsim.experiments.sweep import load_sweep
 from avsim.gym.env import env_config
 from avsim.loop import ClosedLoop
 from avsim.perception.factory import FRAME_DETECTORS, PERCEPTIONS
-from tests.test_config_owners import KIND_CONFIGS
+from tests.test_config_owners import KIND_CONFIGS, _write
 
 PIXEL = set(FRAME_DETECTORS.names())
 # The conditional keys by what reads them; together every key of RUN_CONDITIONS (checked below).
@@ -51,7 +51,10 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
     expected |= {"camera.seg_supersample": sees and kind == "oracle", "scenario.fog_start_m": False,  # no fog by default
                  "vehicle.abs_target_slip": True,
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
-                 "perception.side_roi_px": "side" in cameras and kind in PIXEL}
+                 "perception.side_roi_px": "side" in cameras and kind in PIXEL,
+                 # a perception's keys, read only where it sees through a camera (the autopilot uses none)
+                 "perception.threads": bool(cameras) and kind in PIXEL,
+                 "perception.oracle_min_box_height_px": bool(cameras) and kind == "oracle"}
     return expected | dict.fromkeys(ALWAYS, True)
 
 
@@ -114,12 +117,6 @@ def test_a_gym_agent_names_the_cameras_its_perception_sees_through():
 
 # ---- files: a batch may record its runs ------------------------------------------------------
 
-def _write(tmp_path, text):
-    path = tmp_path / "file.toml"
-    path.write_text(text)
-    return path
-
-
 def test_a_file_key_no_run_draws_is_refused_and_a_recorded_one_loads(tmp_path):
     cells = '[[cells]]\nname = "a"\npolicy = {{ name = "baseline" }}\n{extra}'
     with pytest.raises(ConfigError, match=r'cells\[0\] "a": camera\.side_yaw_deg is read only by a run that draws the side camera'):
@@ -138,6 +135,9 @@ def test_a_sweep_of_side_camera_angles_under_a_front_policy_is_one_run_twice(tmp
         load_sweep(_write(tmp_path, f'title = "s"\n[grid]\n{grid}'))
     with pytest.raises(ConfigError, match="no run here"):
         check_read_by_some([SimConfig()], {"camera.side_fovy_deg"})
+    with pytest.raises(ConfigError, match=r"perception\.side_roi_px .* no cell here .* choose a pixel perception and a policy "
+                                          r"that uses the side camera$"):
+        check_read_by_some([SimConfig()], {"perception.side_roi_px"}, runs="cell")
 
 
 # ---- avsim snapshot -----------------------------------------------------------------------
