@@ -36,8 +36,8 @@ What a run draws decides which of the other `scenario`, `vehicle` and `camera` k
 and the policy's; colour images only for a pixel perception or a recorder, segmentation only for
 the oracle. So the side camera's keys are read only where the policy uses it, the sun, fog,
 surfaces and photographic stages only where colour is drawn, `camera.seg_supersample` only by the
-oracle, `scenario.fog_start_m` only in fog and `vehicle.abs_target_slip` only with anti-lock
-brakes or traction control on. An experiment, sweep or leaderboard file's runs may be recorded
+oracle, `scenario.fog_start_m` only in fog, `scenario.seed` only with a start jitter or sensor
+noise, and `vehicle.abs_target_slip` only with anti-lock brakes or traction control on. An experiment, sweep or leaderboard file's runs may be recorded
 (a batch's `--rrd failed` is the default), so there a recorder is assumed; `avsim run` knows.
 Every other key (the loop's, the car's, where and how fast it starts) is read by every run.
 `docs/config.md` (`python -m avsim.config_reference`) lists every key with its readers.
@@ -289,8 +289,9 @@ def _snapshot_unread(config: SimConfig, dotted: str, towns: bool) -> str | None:
     perception = perception_reads(config.perception)  # both cameras, so both regions
     if dotted == "scenario.town" and towns:
         return "--towns names the towns"
-    if dotted == "scenario.seed" and "perception.sensor_noise_std" not in perception:
-        return f"it seeds the start jitter, which --dist-m replaces, and a pixel perception's sensor noise; the perception is {config.perception.kind}"
+    if dotted == "scenario.seed" and not ("perception.sensor_noise_std" in perception and config.perception.sensor_noise_std > 0):
+        return ("it seeds the start jitter, which --dist-m replaces, and a pixel perception's sensor noise, and this "
+                f"perception ({config.perception.kind}) draws none")
     if section == "perception" and dotted not in perception:
         return f"read only by {readers(dotted)}, and the perception is {config.perception.kind}"
     if dotted == "camera.seg_supersample" and config.perception.kind != "oracle":

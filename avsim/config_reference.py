@@ -169,7 +169,7 @@ def generate() -> str:
         + "; a bag's frames keep their regions). `avsim snapshot` places the car at rest and draws both cameras in",
         "colour with its perception: it refuses the " + ", ".join(f"`{key}`" for key in SNAPSHOT_UNREAD if "." not in key)
         + " keys, " + ", ".join(f"`{key}`" for key in SNAPSHOT_UNREAD if "." in key) + ", its perception's unread keys,",
-        "`camera.seg_supersample` unless the oracle draws, `scenario.seed` unless a pixel perception's noise reads it",
+        "`camera.seg_supersample` unless the oracle draws, `scenario.seed` unless a pixel perception draws sensor noise",
         "and `scenario.town` with `--towns`.",
         "",
         "The meaning column is the comment written beside the field in `avsim/config.py`.",

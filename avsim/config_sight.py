@@ -8,6 +8,11 @@ for a pixel perception, as segmentation for the oracle, not at all for `none`; a
 changes a picture no one draws changes nothing: nothing touches the car but its four tyre-road
 contact pairs (`avsim.vehicle.assembly`), so scenery, signs, light and fog never reach the physics.
 
+Some keys are read only under a value of another: `scenario.fog_start_m` only in fog
+(`fog_end_m` > 0), `scenario.seed` only where it seeds something (a start jitter, or a pixel
+perception's sensor noise), `vehicle.abs_target_slip` only with the anti-lock brakes or the
+traction control on (both hold each wheel's slip near it).
+
 `RUN_CONDITIONS` maps each such key to the `Condition` under which a run reads it; every other
 `scenario`, `vehicle`, `camera` and `loop` key is read by every run.
 """
@@ -130,6 +135,12 @@ FOG_START = Condition(
     lambda config, sight: sight.colour and config.scenario.fog_end_m > 0,
     "a run in fog (scenario.fog_end_m > 0) that draws colour images (see scenario.fog_end_m)",
     _fog_start_unmet, "set scenario.fog_end_m beyond it, in a run that draws colour images")
+SEEDED = Condition(
+    lambda config, sight: config.scenario.start_jitter_m > 0 or (
+        sight.perceives and sight.kind in FRAME_DETECTORS and config.perception.sensor_noise_std > 0),
+    "the start jitter (scenario.start_jitter_m > 0) and a pixel perception's sensor noise (perception.sensor_noise_std > 0)",
+    lambda config, sight: "scenario.start_jitter_m is 0 and it draws no sensor noise",
+    "set scenario.start_jitter_m or a pixel perception's perception.sensor_noise_std above 0")
 SLIP_CONTROL = Condition(
     lambda config, sight: config.vehicle.abs_enabled or config.vehicle.traction_control_enabled,
     "the anti-lock brakes (vehicle.abs_enabled) and the traction control (vehicle.traction_control_enabled)",
@@ -145,6 +156,7 @@ RUN_CONDITIONS: dict[str, Condition] = {
     **dict.fromkeys(("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                      "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials"), COLOUR),
     "scenario.fog_start_m": FOG_START,
+    "scenario.seed": SEEDED,
     "camera.seg_supersample": SEGMENTATION,
     "camera.side_fovy_deg": SIDE_CAMERA,
     "camera.side_yaw_deg": SIDE_CAMERA,

@@ -35,7 +35,8 @@ ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign", "scenario.sign
 
 
 def test_every_conditional_key_is_in_one_group_here():
-    grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "vehicle.abs_target_slip"]
+    grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
+               "vehicle.abs_target_slip"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -49,7 +50,7 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
     expected |= dict.fromkeys(COLOUR_KEYS, (sees and kind in PIXEL) or recorded)
     expected |= dict.fromkeys(SIDE_KEYS, "side" in cameras and (kind != "none" or recorded))
     expected |= {"camera.seg_supersample": sees and kind == "oracle", "scenario.fog_start_m": False,  # no fog by default
-                 "vehicle.abs_target_slip": True,
+                 "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,
                  # a perception's keys, read only where it sees through a camera (the autopilot uses none)
@@ -72,7 +73,7 @@ def test_a_scene_or_camera_key_is_refused_exactly_where_the_run_does_not_draw_it
                     check_read(config, {key}, recorded=recorded)
 
 
-def test_conditions_on_other_keys_fog_and_slip_control():
+def test_conditions_on_other_keys_fog_seed_and_slip_control():
     foggy = with_overrides(SimConfig(), {"scenario": {"fog_end_m": 120.0}})
     check_read(foggy, {"scenario.fog_start_m"}, recorded=False)
     with pytest.raises(ConfigError, match=r"this run's scenario\.fog_end_m is 0 \(clear air"):
@@ -81,6 +82,12 @@ def test_conditions_on_other_keys_fog_and_slip_control():
     with pytest.raises(ConfigError, match=r"vehicle\.abs_target_slip is read only by the anti-lock brakes .* both false"):
         check_read(no_slip_control, {"vehicle.abs_target_slip"})
     check_read(with_overrides(no_slip_control, {"vehicle": {"traction_control_enabled": True}}), {"vehicle.abs_target_slip"})
+    no_jitter = with_overrides(SimConfig(), {"scenario": {"start_jitter_m": 0.0}})
+    with pytest.raises(ConfigError, match=r"scenario\.seed .* this run's scenario\.start_jitter_m is 0 and it draws no sensor noise"):
+        check_read(no_jitter, {"scenario.seed"})
+    check_read(with_overrides(no_jitter, {"perception": {"sensor_noise_std": 2.0}}), {"scenario.seed"})
+    with pytest.raises(ConfigError, match=r"scenario\.seed"):  # the oracle draws no noise
+        check_read(with_overrides(no_jitter, {"perception": {"kind": "oracle"}}), {"scenario.seed"})
 
 
 def test_the_messages_say_why_in_one_line():
@@ -185,6 +192,7 @@ UNREAD = [
      {"scenario": {"distractors": "red_signs", "layout_seed": 3}, "camera": {"width_px": 320, "fovy_deg": 60.0}}),
     ("no slip control", {"policy": {"name": "autopilot"}, "vehicle": {"abs_enabled": False, "traction_control_enabled": False}},
      {"vehicle": {"abs_target_slip": 0.3}}),
+    ("no jitter, no noise", {"scenario": {"start_jitter_m": 0.0}, "perception": {"kind": "oracle"}}, {"scenario": {"seed": 9}}),
 ]
 
 

@@ -47,8 +47,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     check_run_names(config)  # every name and the sign texture, before the scene is built
     # A key set here that this run does not read: its policy, its perception, or what it draws
     # (a recorder draws the front camera in colour, whatever the perception).
+    # With --config, the seed picks the run of the file (its [vary] draw, its record), so it is read.
     recorded = bool(args.rrd or args.mp4 or args.mcap)
-    check_read(config, set_keys(flag_overrides(args)), recorded=recorded)
+    check_read(config, set_keys(flag_overrides(args)) - ({"scenario.seed"} if args.config else set()), recorded=recorded)
     if args.mcap:
         from avsim.recording.ros_types import require_rosbags
 
