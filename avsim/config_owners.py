@@ -49,7 +49,7 @@ import dataclasses
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from avsim.config import ENSEMBLE_NETWORKS, PerceptionConfig, SimConfig
+from avsim.config import ENSEMBLE_NETWORKS, CameraConfig, PerceptionConfig, SimConfig
 from avsim.config_sight import RUN_CONDITIONS, Sight
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
@@ -202,6 +202,16 @@ def check_read(config: SimConfig, keys: Iterable[str], *, recorded: bool = True,
         sight = Sight.of(config, recorded=recorded, cameras=cameras)
         raise ConfigError(f"{key} is read only by {readers(key)}, and this run's {_this_run(config, key, sight)}, so it "
                           f"would be ignored; remove it, or {_fix(config, key, sight)}")
+    _check_preset_fills_something(set(keys), read)
+
+
+def _check_preset_fills_something(keys: set[str], read: frozenset[str]) -> None:
+    """Refuse a `camera.preset` set beside every preset key the run reads: a preset only fills the
+    keys left at 0 (`CameraConfig.PRESET_KEYS`), so it would fill none."""
+    filled = [f"camera.{key}" for key in CameraConfig.PRESET_KEYS if f"camera.{key}" in read]
+    if "camera.preset" in keys and all(key in keys for key in filled):
+        raise ConfigError(f"camera.preset fills only the camera keys not set beside it, and {', '.join(filled)} "
+                          f"{'is' if len(filled) == 1 else 'are'} all set here, so it would be ignored; remove it, or one of them")
 
 
 def _fix(config: SimConfig, dotted: str, sight: Sight) -> str:

@@ -24,7 +24,7 @@ from typing import Any
 
 from avsim import config as config_module
 from avsim.boundary import run_guarded
-from avsim.config import SimConfig, type_name
+from avsim.config import CameraConfig, SimConfig, type_name
 from avsim.config_owners import DETECT_UNREAD, EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, SNAPSHOT_UNREAD, readers
 from avsim.config_sight import RUN_CONDITIONS
 from avsim.control.policies import POLICIES
@@ -158,7 +158,8 @@ def generate() -> str:
         "the policy's in colour; the read-by column says which. Every other scenario, vehicle, camera and loop key",
         "is read by every run. A key you set that the run does not read is refused, in one line naming the key",
         "and who reads it, exit 2; a default is never refused. `avsim run` knows whether it records; a file's runs",
-        "may be recorded by its batch, so there a recorder is assumed. A key in",
+        "may be recorded by its batch, so there a recorder is assumed. A `camera.preset` set beside every camera",
+        "key it would fill (" + ", ".join(f"`camera.{key}`" for key in CameraConfig.PRESET_KEYS) + ", those the run reads) is refused too. A key in",
         "one cell of an experiment file (or one leaderboard defence) must be read by that cell; a key in",
         "`[defaults]`, `[vary]` or a sweep's grid applies to many runs and is refused only when none of them",
         "reads it. A sweep whose grid points differ only in keys their runs do not read would run one run twice",

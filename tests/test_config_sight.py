@@ -90,6 +90,14 @@ def test_conditions_on_other_keys_fog_seed_and_slip_control():
         check_read(with_overrides(no_jitter, {"perception": {"kind": "oracle"}}), {"scenario.seed"})
 
 
+def test_a_preset_set_beside_every_key_it_fills_is_refused():
+    keys = {"camera.preset", "camera.width_px", "camera.height_px", "camera.fovy_deg"}
+    with pytest.raises(ConfigError, match=r"^camera\.preset fills only .* camera\.width_px, camera\.height_px, camera\.fovy_deg are "
+                                          r"all set here"):
+        check_read(SimConfig(), keys, recorded=False)  # baseline: the side camera's field of view is not read
+    check_read(SimConfig(policy=PolicyConfig(name="combined")), keys, recorded=False)  # the preset fills side_fovy_deg
+
+
 def test_the_messages_say_why_in_one_line():
     autopilot = SimConfig(policy=PolicyConfig(name="autopilot"))
     with pytest.raises(ConfigError) as refused:
