@@ -24,11 +24,22 @@ which runs must read it:
 - `avsim detect` and `avsim replay` run a perception on image files or a bag's images, outside the
   closed loop: no policy, scenario, vehicle, camera or loop key is read, and of the perception's
   keys not the simulated sensor's (`check_read_on_images`).
-Not checked yet: `avsim snapshot`, whose `--set` builds a scene picture.
+- `avsim snapshot` draws both cameras' pictures of a car placed at rest: it reads the scene's and
+  the cameras' keys and its perception's, and no policy, loop or vehicle key
+  (`check_snapshot_reads`).
 
 The map's keys (`MAP_KEYS`: `scenario.map_error`, `scenario.map_stop_line_offset_m`) change only
 the HD map, which only the policies that declare `uses_map` read: they are owned by those policies.
-The other `scenario`, `vehicle`, `camera` and `loop` keys are read by every run and not checked here.
+What a run draws decides which of the other `scenario`, `vehicle` and `camera` keys it reads
+(`RUN_CONDITIONS`, judged on the run's `Sight`): a run draws through the cameras its policy uses
+(the autopilot uses none, so its perception never runs) and a recorder draws the front camera
+and the policy's; colour images only for a pixel perception or a recorder, segmentation only for
+the oracle. So the side camera's keys are read only where the policy uses it, the sun, fog,
+surfaces and photographic stages only where colour is drawn, `camera.seg_supersample` only by the
+oracle, `scenario.fog_start_m` only in fog, `scenario.seed` only with a start jitter or sensor
+noise, and `vehicle.abs_target_slip` only with anti-lock brakes or traction control on. An experiment, sweep or leaderboard file's runs may be recorded
+(a batch's `--rrd failed` is the default), so there a recorder is assumed; `avsim run` knows.
+Every other key (the loop's, the car's, where and how fast it starts) is read by every run.
 `docs/config.md` (`python -m avsim.config_reference`) lists every key with its readers.
 """
 
@@ -38,7 +49,8 @@ import dataclasses
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from avsim.config import ENSEMBLE_NETWORKS, PerceptionConfig, PolicyConfig, ScenarioConfig, SimConfig
+from avsim.config import ENSEMBLE_NETWORKS, CameraConfig, PerceptionConfig, SimConfig
+from avsim.config_sight import RUN_CONDITIONS, Sight
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
 from avsim.perception.factory import CONDITIONAL_KEYS, NETWORK_KEYS, PERCEPTION_KEYS, PERCEPTIONS, perception_keys
@@ -54,6 +66,8 @@ EVERY_RUN_READS = {
     "perception.kind": "it names the perception",
     "policy.conf_threshold": "the result record's confident detection: first_detection_dist_m, the trace, the video",
 }
+# A pixel perception's region of interest in each camera, read only where it sees through that camera.
+REGION_KEYS = {"front": "perception.front_roi_px", "side": "perception.side_roi_px"}
 
 
 def policy_reads(name: str) -> frozenset[str]:
@@ -70,26 +84,40 @@ def perception_reads(perception: PerceptionConfig) -> frozenset[str]:
     return frozenset(f"perception.{key}" for key in perception_keys(perception)) | _every_run("perception")
 
 
-def keys_read(config: SimConfig) -> frozenset[str]:
-    """Every owned dotted key (`policy.*`, `perception.*`, `MAP_KEYS`) that the run of `config` reads."""
-    return policy_reads(config.policy.name) | perception_reads(config.perception)
+def _perception_seen(perception: PerceptionConfig, sight: Sight) -> frozenset[str]:
+    """`perception_reads` less what no camera of the run feeds: every key but the every-run ones
+    when it sees through no camera (the autopilot), a camera's region when it does not see through it."""
+    if not sight.cameras:
+        return _every_run("perception")
+    return perception_reads(perception) - {key for camera, key in REGION_KEYS.items() if camera not in sight.cameras}
+
+
+def keys_read(config: SimConfig, *, recorded: bool = True, cameras: tuple[str, ...] | None = None) -> frozenset[str]:
+    """Every owned dotted key (`policy.*`, `perception.*`, `MAP_KEYS`, `RUN_CONDITIONS`) that the run
+    of `config` reads; recorded: whether a recorder may draw it; cameras: those its perception sees
+    through (None: its policy's)."""
+    sight = Sight.of(config, recorded=recorded, cameras=cameras)
+    conditional = frozenset(key for key, condition in RUN_CONDITIONS.items() if condition.holds(config, sight))
+    return policy_reads(config.policy.name) | _perception_seen(config.perception, sight) | conditional
 
 
 def _every_run(section: str) -> frozenset[str]:
     return frozenset(key for key in EVERY_RUN_READS if key.startswith(f"{section}."))
 
 
+def _owned(dotted: str) -> bool:
+    """Whether `dotted` is read by some runs only (and so checked): a policy or perception key, the map's, or a RUN_CONDITIONS key."""
+    return dotted.split(".", 1)[0] in OWNED_SECTIONS or dotted in MAP_KEYS or dotted in RUN_CONDITIONS
+
+
+def dotted_keys(overrides: Mapping[str, Any]) -> frozenset[str]:
+    """Every dotted key a nested override mapping sets ({"policy": {"vote_k": 3}} -> policy.vote_k)."""
+    return frozenset(f"{section}.{key}" for section, table in overrides.items() if isinstance(table, Mapping) for key in table)
+
+
 def set_keys(overrides: Mapping[str, Any]) -> frozenset[str]:
-    """The owned dotted keys (`policy.*`, `perception.*`, `MAP_KEYS`) that a nested override mapping sets."""
-    keys = set()
-    for section in OWNED_SECTIONS:
-        table = overrides.get(section)
-        if isinstance(table, Mapping):
-            keys.update(f"{section}.{key}" for key in table)
-    scenario = overrides.get("scenario")
-    if isinstance(scenario, Mapping):
-        keys.update(f"scenario.{key}" for key in scenario if f"scenario.{key}" in MAP_KEYS)
-    return frozenset(keys)
+    """The owned dotted keys (`policy.*`, `perception.*`, `MAP_KEYS`, `RUN_CONDITIONS`) that a nested override mapping sets."""
+    return frozenset(key for key in dotted_keys(overrides) if _owned(key))
 
 
 def readers(dotted: str) -> str:
@@ -98,6 +126,8 @@ def readers(dotted: str) -> str:
     section, key = dotted.split(".", 1)
     if dotted in MAP_KEYS:
         return f"the policies that read the map ({', '.join(_map_readers())})"
+    if dotted in RUN_CONDITIONS:
+        return RUN_CONDITIONS[dotted].readers
     if section == "policy":
         names = [name for name in POLICIES.names() if key in POLICIES.get(name).config_keys]
         policies = f"polic{'ies' if len(names) > 1 else 'y'} {', '.join(names)}" if names else "no policy"
@@ -114,6 +144,8 @@ def readers(dotted: str) -> str:
     if key in CONDITIONAL_KEYS:
         switch, value = CONDITIONAL_KEYS[key]
         text += f", with perception.{switch} = {value}"
+    if dotted == REGION_KEYS["side"]:
+        text += f", through the side camera (policies {', '.join(_camera_users('side'))})"
     return text
 
 
@@ -121,16 +153,38 @@ def _map_readers() -> list[str]:
     return [name for name in POLICIES.names() if POLICIES.get(name).uses_map]
 
 
+def _camera_users(camera: str) -> list[str]:
+    return [name for name in POLICIES.names() if camera in POLICIES.get(name).cameras]
+
+
 def _conditional_on(key: str, keys: Iterable[str]) -> bool:
     """Whether `key` is read under one value of a key in `keys` (purify_jpeg_quality under purify)."""
     return key in CONDITIONAL_KEYS and CONDITIONAL_KEYS[key][0] in keys
 
 
-def _this_run(config: SimConfig, dotted: str) -> str:
+def _unseen_camera(config: SimConfig, dotted: str, sight: Sight) -> str | None:
+    """The camera whose absence alone keeps the run from reading the perception key `dotted`, which
+    its perception's kind reads: "" when it sees through no camera, "side" for the side region;
+    None when the cameras are not the reason."""
+    if dotted in EVERY_RUN_READS or dotted not in perception_reads(config.perception):
+        return None
+    if not sight.cameras:
+        return ""
+    return next((camera for camera, key in REGION_KEYS.items() if key == dotted and camera not in sight.cameras), None)
+
+
+def _this_run(config: SimConfig, dotted: str, sight: Sight) -> str:
     """What the run has that keeps it from reading `dotted`, e.g. "policy is baseline"."""
     section, key = dotted.split(".", 1)
+    if dotted in RUN_CONDITIONS:
+        return RUN_CONDITIONS[dotted].unmet(config, sight)
     if section == "policy" or dotted in MAP_KEYS:
         return f"policy is {config.policy.name}"
+    camera = _unseen_camera(config, dotted, sight)
+    if camera is not None:
+        if sight.agent:
+            return f"perception sees through the {' and '.join(sight.cameras)} camera only"
+        return f"policy is {sight.policy}, which " + ("uses no camera" if camera == "" else f"does not use the {camera} camera")
     text = f"perception is {config.perception.kind}"
     if key in CONDITIONAL_KEYS:
         switch = CONDITIONAL_KEYS[key][0]
@@ -138,28 +192,50 @@ def _this_run(config: SimConfig, dotted: str) -> str:
     return text
 
 
-def _owned(dotted: str) -> bool:
-    return dotted.split(".", 1)[0] in OWNED_SECTIONS or dotted in MAP_KEYS
-
-
-def check_read(config: SimConfig, keys: Iterable[str]) -> None:
-    """Refuse the first of `keys` (dotted) that the run of `config` does not read, in one line."""
-    read = keys_read(config)
+def check_read(config: SimConfig, keys: Iterable[str], *, recorded: bool = True, cameras: tuple[str, ...] | None = None) -> None:
+    """Refuse the first of `keys` (dotted) that the run of `config` does not read, in one line;
+    recorded, cameras: as for `keys_read` (a recorder is assumed unless the caller knows better)."""
+    read = keys_read(config, recorded=recorded, cameras=cameras)
     unread = sorted(key for key in keys if _owned(key) and key not in read)
     if unread:
         key = unread[0]
-        raise ConfigError(f"{key} is read only by {readers(key)}, and this run's {_this_run(config, key)}, so it "
-                          f"would be ignored; remove it, or {_fix(config, key)}")
+        sight = Sight.of(config, recorded=recorded, cameras=cameras)
+        raise ConfigError(f"{key} is read only by {readers(key)}, and this run's {_this_run(config, key, sight)}, so it "
+                          f"would be ignored; remove it, or {_fix(config, key, sight)}")
+    _check_preset_fills_something(set(keys), read)
 
 
-def _fix(config: SimConfig, dotted: str) -> str:
+def _check_preset_fills_something(keys: set[str], read: frozenset[str]) -> None:
+    """Refuse a `camera.preset` set beside every preset key the run reads: a preset only fills the
+    keys left at 0 (`CameraConfig.PRESET_KEYS`), so it would fill none."""
+    filled = [f"camera.{key}" for key in CameraConfig.PRESET_KEYS if f"camera.{key}" in read]
+    if "camera.preset" in keys and all(key in keys for key in filled):
+        raise ConfigError(f"camera.preset fills only the camera keys not set beside it, and {', '.join(filled)} "
+                          f"{'is' if len(filled) == 1 else 'are'} all set here, so it would be ignored; remove it, or one of them")
+
+
+def _fix(config: SimConfig, dotted: str, sight: Sight) -> str:
     """How to make the run read `dotted`: set the key it depends on, or choose another owner."""
     section, key = dotted.split(".", 1)
+    if dotted in RUN_CONDITIONS:
+        return RUN_CONDITIONS[dotted].fix
+    camera = _unseen_camera(config, dotted, sight)
+    if camera is not None:
+        return f"choose a policy that uses the {camera} camera" if camera else "choose a policy that uses a camera"
     if key in CONDITIONAL_KEYS and section == "perception":
         switch, value = CONDITIONAL_KEYS[key]
-        if f"perception.{switch}" in keys_read(config):
+        if f"perception.{switch}" in _perception_seen(config.perception, sight):
             return f"set perception.{switch} = {value}"
-    return f"choose a {'policy' if dotted in MAP_KEYS else section} that reads it"
+    return _fix_any(dotted)
+
+
+def _fix_any(dotted: str) -> str:
+    """How to make some run read `dotted`: choose an owner, or meet its condition."""
+    if dotted in RUN_CONDITIONS:
+        return RUN_CONDITIONS[dotted].fix
+    if dotted == REGION_KEYS["side"]:
+        return "choose a pixel perception and a policy that uses the side camera"
+    return f"choose a {'policy' if dotted in MAP_KEYS else dotted.split('.')[0]} that reads it"
 
 
 # Perception keys that only a simulated camera gives meaning to: `avsim detect` searches a whole
@@ -192,9 +268,52 @@ def check_read_on_images(perception: PerceptionConfig, perception_overrides: Map
             raise ConfigError(f"{key} is not read by {command} ({why}), so it would be ignored; remove it")
 
 
+# What `avsim snapshot` leaves unread: it places the car at rest at --dist-m (with no physics step)
+# and draws both cameras in colour, with its perception's boxes. Dotted key or section -> why.
+SNAPSHOT_UNREAD = {
+    "policy": "it draws the cameras' pictures, and no policy decides anything",
+    "loop": "it places the car at rest at --dist-m and runs no physics step",
+    "vehicle": "it places the car at rest at --dist-m and runs no physics step",
+    **dict.fromkeys(("scenario.speed_kmh", "scenario.start_speed_kmh", "scenario.start_dist_m", "scenario.start_jitter_m",
+                     "scenario.road_friction"), "it places the car at rest at --dist-m and runs no physics step"),
+    **dict.fromkeys(MAP_KEYS, "its pictures show the world, not the car's map"),
+}
+
+
+def check_snapshot_reads(config: SimConfig, overrides: Mapping[str, Any], *, towns: bool) -> None:
+    """Refuse, in one line, the first key of the nested `overrides` (what a user set) that `avsim
+    snapshot` of `config` does not read; towns: whether --towns names the towns (then scenario.town
+    is not read)."""
+    for key in sorted(dotted_keys(overrides)):
+        why = _snapshot_unread(config, key, towns)
+        if why:
+            raise ConfigError(f"{key} is not read by avsim snapshot ({why}), so it would be ignored; remove it")
+
+
+def _snapshot_unread(config: SimConfig, dotted: str, towns: bool) -> str | None:
+    """Why `avsim snapshot` does not read `dotted`, or None when it does."""
+    section = dotted.split(".", 1)[0]
+    why = SNAPSHOT_UNREAD.get(dotted) or SNAPSHOT_UNREAD.get(section)
+    if why:
+        return why
+    perception = perception_reads(config.perception)  # both cameras, so both regions
+    if dotted == "scenario.town" and towns:
+        return "--towns names the towns"
+    if dotted == "scenario.seed" and not ("perception.sensor_noise_std" in perception and config.perception.sensor_noise_std > 0):
+        return ("it seeds the start jitter, which --dist-m replaces, and a pixel perception's sensor noise, and this "
+                f"perception ({config.perception.kind}) draws none")
+    if section == "perception" and dotted not in perception:
+        return f"read only by {readers(dotted)}, and the perception is {config.perception.kind}"
+    if dotted == "camera.seg_supersample" and config.perception.kind != "oracle":
+        return f"only the oracle perception draws segmentation, and the perception is {config.perception.kind}"
+    if dotted == "scenario.fog_start_m" and config.scenario.fog_end_m == 0:
+        return "scenario.fog_end_m is 0 (clear air: no fog is drawn)"
+    return None
+
+
 def check_read_by_some(configs: Iterable[SimConfig], keys: Iterable[str], runs: str = "run") -> None:
-    """Refuse the first of `keys` (dotted) that none of `configs` reads; runs: what a config is, in
-    the message ("cell", "run of the grid")."""
+    """Refuse the first of `keys` (dotted) that none of `configs` reads (each run may be recorded);
+    runs: what a config is, in the message ("cell", "run of the grid")."""
     pending = {key for key in keys if _owned(key)}
     for config in configs:
         pending -= keys_read(config)
@@ -203,27 +322,23 @@ def check_read_by_some(configs: Iterable[SimConfig], keys: Iterable[str], runs: 
     if pending:
         key = sorted(pending)[0]
         raise ConfigError(f"{key} is read only by {readers(key)}, and no {runs} here has one, so it would be "
-                          f"ignored; remove it, or choose a {'policy' if key in MAP_KEYS else key.split('.')[0]} "
-                          f"that reads it")
+                          f"ignored; remove it, or {_fix_any(key)}")
 
 
 def as_run(config: SimConfig) -> SimConfig:
-    """`config` with every owned key its run does not read back at its default: two configs with
-    the same `as_run` make the same run."""
+    """`config` with every owned key its run does not read (even recorded) back at its default: two
+    configs with the same `as_run` make the same run."""
     read = keys_read(config)
-    policy = _defaults_for_unread(config.policy, PolicyConfig(), "policy", read)
-    perception = _defaults_for_unread(config.perception, PerceptionConfig(), "perception", read)
-    unread_map = {key.split(".", 1)[1]: getattr(ScenarioConfig(), key.split(".", 1)[1])
-                  for key in MAP_KEYS if key not in read}
-    scenario = dataclasses.replace(config.scenario, **unread_map)  # the defaults are valid with any scenario
-    return dataclasses.replace(config, scenario=scenario, policy=policy, perception=perception)
-
-
-def _defaults_for_unread(section: Any, default: Any, name: str, read: frozenset[str]) -> Any:
-    unread = {f.name: getattr(default, f.name) for f in dataclasses.fields(section) if f"{name}.{f.name}" not in read}
-    # Replacing one key at a time could pass through a combination __post_init__ refuses
-    # (vote_k > vote_n); the defaults of every unread key together are valid with the read ones.
-    return dataclasses.replace(section, **unread)
+    sections = {}
+    for section in dataclasses.fields(config):
+        value = getattr(config, section.name)
+        default = type(value)()
+        # Replacing one key at a time could pass through a combination __post_init__ refuses
+        # (vote_k > vote_n); the defaults of every unread key together are valid with the read ones.
+        unread = {f.name: getattr(default, f.name) for f in dataclasses.fields(value)
+                  if _owned(f"{section.name}.{f.name}") and f"{section.name}.{f.name}" not in read}
+        sections[section.name] = dataclasses.replace(value, **unread)
+    return dataclasses.replace(config, **sections)
 
 
 def identical_runs(labelled: Iterable[tuple[str, SimConfig]]) -> tuple[str, str, list[str]] | None:
@@ -234,9 +349,9 @@ def identical_runs(labelled: Iterable[tuple[str, SimConfig]]) -> tuple[str, str,
         run = as_run(config)
         if run in seen:
             first_label, first = seen[run]
-            differ = [f"{section}.{f.name}" for section in ("scenario", *OWNED_SECTIONS)
-                      for f in dataclasses.fields(getattr(config, section))
-                      if getattr(getattr(config, section), f.name) != getattr(getattr(first, section), f.name)]
+            differ = [f"{section.name}.{f.name}" for section in dataclasses.fields(config)
+                      for f in dataclasses.fields(getattr(config, section.name))
+                      if getattr(getattr(config, section.name), f.name) != getattr(getattr(first, section.name), f.name)]
             return first_label, label, differ
         seen[run] = (label, config)
     return None

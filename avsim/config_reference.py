@@ -24,8 +24,9 @@ from typing import Any
 
 from avsim import config as config_module
 from avsim.boundary import run_guarded
-from avsim.config import SimConfig, type_name
-from avsim.config_owners import DETECT_UNREAD, EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, readers
+from avsim.config import CameraConfig, SimConfig, type_name
+from avsim.config_owners import DETECT_UNREAD, EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, SNAPSHOT_UNREAD, readers
+from avsim.config_sight import RUN_CONDITIONS
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
 from avsim.outputs import write_text
@@ -114,6 +115,8 @@ def _cell(text: str) -> str:
 
 
 def section_table(section: str, instance: Any) -> list[str]:
+    """The Markdown table lines of one config section (`section`, e.g. "camera", and its default
+    dataclass `instance`): a row per key with type, unit, range or choices, default, readers, meaning."""
     cls = type(instance)
     hints = typing.get_type_hints(cls)
     comments = field_comments(cls)
@@ -130,7 +133,7 @@ def section_table(section: str, instance: Any) -> list[str]:
             limits, unit = ", ".join(_value(c) for c in CHOICES[dotted]), ""
         else:
             limits, unit = "", ""
-        who = readers(dotted) if section in OWNED_SECTIONS or dotted in MAP_KEYS else "every run"
+        who = readers(dotted) if section in OWNED_SECTIONS or dotted in MAP_KEYS or dotted in RUN_CONDITIONS else "every run"
         rows.append(f"| `{dotted}` | {_type_name(hints[f.name])} | {unit} | {_cell(limits)} | `{_value(getattr(instance, f.name))}` | "
                     f"{_cell(who)} | {_cell(meaning)} |")
     return rows
@@ -146,11 +149,17 @@ def generate() -> str:
         "`config_overrides` of the Gymnasium environment ([running.md](running.md), [scaling.md](scaling.md)).",
         "An unknown key, a wrong type or a value out of range is refused before any work, naming the key.",
         "",
-        "**Who reads a key.** The scenario, vehicle, camera and loop keys are read by every run, except the",
-        "map's (" + ", ".join(f"`{key}`" for key in MAP_KEYS) + "), read only by the policies that read the map. A `policy.*` key",
-        "is read only by the policies that declare it, and a `perception.*` key only by the perceptions that",
-        "declare it (`avsim/config_owners.py`). A key you set that the run's policy or perception does not read",
-        "is refused, in one line naming the key and who reads it, exit 2; a default is never refused. A key in",
+        "**Who reads a key.** A `policy.*` key is read only by the policies that declare it, and a `perception.*`",
+        "key only by the perceptions that declare it, through the cameras its policy uses (the autopilot uses",
+        "none; `avsim/config_owners.py`). The map's keys (" + ", ".join(f"`{key}`" for key in MAP_KEYS) + ") are read only by the",
+        "policies that read the map. Some scenario, camera and vehicle keys are read only where the run draws",
+        "what they change (`avsim/config_sight.py`): a perception draws through its policy's cameras, in colour",
+        "for a pixel perception and as segmentation for the oracle, and a recorder draws the front camera and",
+        "the policy's in colour; the read-by column says which. Every other scenario, vehicle, camera and loop key",
+        "is read by every run. A key you set that the run does not read is refused, in one line naming the key",
+        "and who reads it, exit 2; a default is never refused. `avsim run` knows whether it records; a file's runs",
+        "may be recorded by its batch, so there a recorder is assumed. A `camera.preset` set beside every camera",
+        "key it would fill (" + ", ".join(f"`camera.{key}`" for key in CameraConfig.PRESET_KEYS) + ", those the run reads) is refused too. A key in",
         "one cell of an experiment file (or one leaderboard defence) must be read by that cell; a key in",
         "`[defaults]`, `[vary]` or a sweep's grid applies to many runs and is refused only when none of them",
         "reads it. A sweep whose grid points differ only in keys their runs do not read would run one run twice",
@@ -158,7 +167,11 @@ def generate() -> str:
         "its policy and perception: " + "; ".join(f"`{key}` ({why})" for key, why in EVERY_RUN_READS.items()) + ".",
         "`avsim detect` and `avsim replay` run a perception on images without a simulation: they refuse every",
         "key but their perception's, and of those the simulated camera's (" + ", ".join(f"`{key}`" for key in DETECT_UNREAD)
-        + "; a bag's frames keep their regions). `avsim snapshot` is not checked yet.",
+        + "; a bag's frames keep their regions). `avsim snapshot` places the car at rest and draws both cameras in",
+        "colour with its perception: it refuses the " + ", ".join(f"`{key}`" for key in SNAPSHOT_UNREAD if "." not in key)
+        + " keys, " + ", ".join(f"`{key}`" for key in SNAPSHOT_UNREAD if "." in key) + ", its perception's unread keys,",
+        "`camera.seg_supersample` unless the oracle draws, `scenario.seed` unless a pixel perception draws sensor noise",
+        "and `scenario.town` with `--towns`.",
         "",
         "The meaning column is the comment written beside the field in `avsim/config.py`.",
         "",
@@ -172,6 +185,7 @@ def generate() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """`python -m avsim.config_reference`: print, write (--out) or check (--check) the page; returns the exit status."""
     parser = OneLineArgumentParser(prog=PROG, description="Write or check docs/config.md, the reference of every config key.")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--out", help="write the page here (default: print it)")

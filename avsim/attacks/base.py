@@ -22,6 +22,13 @@ from avsim.attacks.objective import StopEvidence
 
 
 class Scene(Protocol):
+    """What an attack sees of the world: the sign face's texel mask and the stop-sign evidence a
+    texture earns in rendered views of the sign (`avsim.attacks.sign_view`, over a view bank).
+
+    Textures are (3, H_tex, W_tex) RGB in [0, 1], in the sign texture's own pixels (row 0 at the
+    top of the face); evidence is per view, as `StopEvidence` tensors of shape (n_views,).
+    """
+
     face_mask: torch.Tensor  # (1, H_tex, W_tex) 1 on the sign face, 0 outside the octagon
 
     def evidence(self, texture: torch.Tensor, n_views: int, generator: torch.Generator,

@@ -17,6 +17,11 @@ from avsim.attacks.base import Attack, Scene, optimise_bounded
 
 
 class Chen(Attack):
+    """ShapeShifter (Chen et al. 2018): the whole face perturbed, |delta| <= eps (L-infinity, in
+    [0, 1] colour units), minimising the floored stop-sign logit over EOT views plus
+    `similarity_weight` x mean(delta^2). Call it on a clean texture (3, H, W) in [0, 1].
+    """
+
     name = "chen"
     paper = "Chen et al. 2018, ShapeShifter"
 

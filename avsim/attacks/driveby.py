@@ -37,6 +37,13 @@ OBJECTIVES = ("score", "gate")
 
 
 class DriveBy(Attack):
+    """Hide the sign over whole approaches (EOT over drive-bys, after Athalye et al. 2018 and Zhao
+    et al. 2019): within SSIM >= `ssim_floor` on the face and |delta| <= eps, minimising a soft
+    maximum over each drive-by's frames of the stop-sign score (`objective = "score"`) or of the
+    score inside the braking gate at `trigger_dist_m` [m] (`"gate"`), optionally per `vote_k` of
+    `vote_n` windows. Call it on a clean texture (3, H, W) in [0, 1].
+    """
+
     name = "driveby"
     paper = "Athalye et al. 2018 (EOT) and Zhao et al. 2019 (hiding over a drive)"
 

@@ -43,6 +43,12 @@ def sticker_mask(face_mask: torch.Tensor, n_stickers: int, max_area_fraction: fl
 
 
 class Eykholt(Attack):
+    """RP2 stickers (Eykholt et al. 2018): `n_stickers` horizontal bars covering at most
+    `max_area_fraction` of the face (an area budget, no norm bound inside it), minimising the mean
+    stop-sign score over EOT views plus non-printability, total-variation and squared-change
+    terms. Call it on a clean texture (3, H, W) in [0, 1].
+    """
+
     name = "eykholt"
     paper = "Eykholt et al. 2018, RP2"
 

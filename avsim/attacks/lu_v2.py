@@ -18,6 +18,11 @@ from avsim.attacks.base import Attack, Scene, optimise_bounded
 
 
 class LuV2(Attack):
+    """Lu, Sibai and Fabry 2017, the study's "v2": |delta| <= eps (L-infinity, [0, 1] colour units)
+    on the face, minimising the mean stop-sign score over a drive-by sequence (60 m to 10 m).
+    Call it on a clean texture (3, H, W) in [0, 1].
+    """
+
     name = "lu_v2"
     paper = "Lu, Sibai, Fabry 2017, Adversarial examples that fool detectors"
 

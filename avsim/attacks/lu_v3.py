@@ -20,6 +20,12 @@ from avsim.attacks.budget import total_variation
 
 
 class LuV3(Attack):
+    """Lu, Sibai and Fabry 2017, the study's "v3": |delta| <= eps (L-infinity, [0, 1] colour units)
+    on the face, minimising a soft maximum (log-sum-exp at `temperature`) of the stop-sign score
+    over a drive-by sequence plus `tv_weight` x total variation. Call it on a clean texture
+    (3, H, W) in [0, 1].
+    """
+
     name = "lu_v3"
     paper = "Lu, Sibai, Fabry 2017, Adversarial examples that fool detectors"
 

@@ -24,6 +24,11 @@ from avsim.attacks.objective import log_height_ratio
 
 
 class RangeInflation(Attack):
+    """Box-height attack after Chow et al. 2020 (TOG): within SSIM >= `ssim_floor` on the face and
+    |delta| <= eps, minimising the mean log(predicted / true box height [px]) over whole drive-bys,
+    so the pinhole range d = H f / h reads long. Call it on a clean texture (3, H, W) in [0, 1].
+    """
+
     name = "range_inflation"
     paper = "Chow et al. 2020, TOG (one dense output's gradient; here the box height)"
 

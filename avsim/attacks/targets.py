@@ -54,6 +54,9 @@ ENSEMBLE_TEMPERATURE = 0.05
 
 
 class Target(Protocol):
+    """A differentiable stop-sign detector an attack optimises against: views in, the sign's
+    stop-sign evidence out (`StopEvidence`, every field (B,)), with gradients to the pixels."""
+
     name: str
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
@@ -87,9 +90,12 @@ class DetectorTarget:
         self.weights_path = weights_path
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """Evidence (each field (B,)) of views `images` (B, 3, H, W) in [0, 1] from the detector's
+        cells near each sign box `sign_boxes_px` (B, 4) xyxy [view px]."""
         return stop_evidence(self.detector(images), self.detector.strides, sign_boxes_px)
 
     def weight_hashes(self) -> dict[str, str]:
+        """The weights file's name -> its sha256 (empty when the detector came without a file)."""
         return {self.weights_path.name: sha256_file(self.weights_path)} if self.weights_path else {}
 
 
@@ -127,6 +133,9 @@ class CocoTarget:
         self.cache_dir = cache_dir
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """Evidence (each field (B,)) of views `images` (B, 3, H, W) in [0, 1]: the stop-sign heatmap's
+        best cell centred within NEAR_MARGIN_PX of each sign box `sign_boxes_px` (B, 4) xyxy [view px],
+        and that box's height [view px]; score, objectness and class probability are one number here."""
         crops, boxes = square_crops(images, sign_boxes_px, self.crop_px)
         x = upsample_bilinear_tf(crops * 255.0, (self.upscale, self.upscale)) if self.upscale > 1 else crops * 255.0
         heatmap, wh = self.model.maps(x.contiguous(memory_format=torch.channels_last))
@@ -143,6 +152,7 @@ class CocoTarget:
         return StopEvidence(best, best, best, logit, reported_height_px(heights_px, score, near))
 
     def weight_hashes(self) -> dict[str, str]:
+        """The fetched CenterNet files' names -> their sha256 (as checked at install)."""
         from avsim.perception.coco import fetch
 
         return {name: digest for name, digest in fetch.MODEL_FILES.values()}
@@ -163,6 +173,9 @@ class YoloTarget:
         self.stop_class = [avsim_class_name(name) for name in model.class_names].index("stop_sign")
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """Evidence (each field (B,)) of views `images` (B, 3, H, W) in [0, 1] from the decoded rows
+        whose boxes are centred within NEAR_MARGIN_PX of each sign box `sign_boxes_px` (B, 4) xyxy
+        [view px]: objectness x stop-sign probability, and the reported box's height [view px]."""
         crops, boxes = square_crops(images, sign_boxes_px, self.crop_px)
         x = crops * 255.0
         if self.upscale > 1:
@@ -181,6 +194,7 @@ class YoloTarget:
                             reported_height_px(rows_px[..., 3] - rows_px[..., 1], score, near))
 
     def weight_hashes(self) -> dict[str, str]:
+        """The fetched Darknet files' names -> their sha256 (as checked at install)."""
         from avsim.perception.yolo import fetch
 
         return {name: digest for name, digest in fetch.MODEL_FILES.values()}
@@ -195,6 +209,8 @@ class EnsembleTarget:
         self.targets = targets
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """Each member's evidence of `images` (B, 3, H, W) combined: a soft maximum of the scores,
+        the largest class logit, the geometric mean of the box heights [view px]; each field (B,)."""
         parts = [target.evidence(images, sign_boxes_px) for target in self.targets]
 
         def combine(field: str) -> torch.Tensor:
@@ -205,6 +221,7 @@ class EnsembleTarget:
                             torch.stack([p.class_logit for p in parts]).amax(dim=0), heights)
 
     def weight_hashes(self) -> dict[str, str]:
+        """Every member's weight files' names -> their sha256."""
         return {name: digest for target in self.targets for name, digest in target.weight_hashes().items()}
 
 
@@ -224,9 +241,11 @@ class PurifiedTarget:
         self.name = f"{inner.name}+{purify_name}"
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
+        """`inner`'s evidence of the purified views `images` (B, 3, H, W) in [0, 1]; each field (B,)."""
         return self.inner.evidence(self.purify(images), sign_boxes_px)
 
     def weight_hashes(self) -> dict[str, str]:
+        """`inner`'s weight files (the purifier has none)."""
         return self.inner.weight_hashes()
 
 

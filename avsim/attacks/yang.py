@@ -30,6 +30,12 @@ def saliency_attention(scene: Scene, clean: torch.Tensor, n_views: int, generato
 
 
 class Yang(Attack):
+    """Targeted attention attack (Yang et al. 2020): a per-texel L-infinity bound eps_peak x
+    attention^gamma, the attention being the detector's blurred saliency on the clean sign over
+    `saliency_views` views; minimises the mean stop-sign score over EOT views. Call it on a clean
+    texture (3, H, W) in [0, 1].
+    """
+
     name = "yang"
     paper = "Yang et al. 2020, targeted attention attack"
 

@@ -45,7 +45,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from avsim.experiments.spec import check_run_names
 
     check_run_names(config)  # every name and the sign texture, before the scene is built
-    check_read(config, set_keys(flag_overrides(args)))  # a key set here that this run's policy or perception ignores
+    # A key set here that this run does not read: its policy, its perception, or what it draws
+    # (a recorder draws the front camera in colour, whatever the perception).
+    # With --config, the seed picks the run of the file (its [vary] draw, its record), so it is read.
+    recorded = bool(args.rrd or args.mp4 or args.mcap)
+    check_read(config, set_keys(flag_overrides(args)) - ({"scenario.seed"} if args.config else set()), recorded=recorded)
     if args.mcap:
         from avsim.recording.ros_types import require_rosbags
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from avsim.cli.flags import add_scenario_flags, config_from_args
+from avsim.cli.flags import add_scenario_flags, config_from_args, flag_overrides
+from avsim.config_owners import check_snapshot_reads
 from avsim.errors import ConfigError
 from avsim.outputs import PREFIX, add_output_argument
 from avsim.validation import name_list_flag, number_flag
@@ -16,6 +17,7 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
     from avsim.world.towns import TOWNS
 
     config = config_from_args(args)
+    check_snapshot_reads(config, flag_overrides(args), towns=args.towns is not None)  # a key set that no picture shows
     check_snapshot_distance(args.dist_m)
     if args.towns is None:
         if args.strip:

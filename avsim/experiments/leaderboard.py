@@ -77,6 +77,9 @@ class Condition:
 
 @dataclass(frozen=True)
 class Defence:
+    """One row of the board: its name, a line `about` it for the report, the config `overrides`
+    (nested sections) that make the defence, and its own `adaptive` attack condition."""
+
     name: str
     about: str
     overrides: dict[str, Any]
@@ -85,6 +88,9 @@ class Defence:
 
 @dataclass(frozen=True)
 class Place:
+    """A town and sign placement where a stop is required, run at scenario.seed 0 .. seeds - 1
+    (quick_seeds of them with --quick; 0 leaves the place out)."""
+
     town: str
     placement: str
     seeds: int
@@ -98,6 +104,9 @@ class Place:
 
 @dataclass(frozen=True)
 class Availability:
+    """A scenario where no stop is required (phantom braking): its name, the `overrides` that make
+    it, its seed counts as `Place`'s, and the `defences` that run it (None: every defence)."""
+
     name: str
     overrides: dict[str, Any]
     seeds: int

@@ -67,13 +67,14 @@ _STEER_ACTUATOR = "car/steer_fl"
 
 def env_config(*, town: str | None = None, placement: str | None = None, sign: str | None = None,
                speed_kmh: float | None = None, perception: str | None = None,
-               config_overrides: Mapping[str, Any] | None = None) -> SimConfig:
+               config_overrides: Mapping[str, Any] | None = None, cameras: Sequence[str] = ("front",)) -> SimConfig:
     """The `SimConfig` an environment runs: `config_overrides` (nested, as in an experiment file or
     `--set`), then the named arguments, which may not be given twice.
 
     The car starts at scenario.speed_kmh (85 km/h, or speed_kmh), unless config_overrides sets
     scenario.start_speed_kmh: the agent, not the cruise control, holds the throttle, so an episode
-    starts at the speed the car approaches at. perception None is the `none` perception.
+    starts at the speed the car approaches at. perception None is the `none` perception; cameras:
+    those the perception sees through (a region of interest of another is not read).
     """
     if not isinstance(config_overrides, Mapping | None):
         raise ConfigError(f"config_overrides must be a mapping of config sections, e.g. {{'scenario': {{'fog_end_m': 120}}}}, "
@@ -97,8 +98,8 @@ def env_config(*, town: str | None = None, placement: str | None = None, sign: s
     if "start_speed_kmh" not in scenario:
         base = with_overrides(base, {"scenario": {"start_speed_kmh": base.scenario.speed_kmh}})
     # A perception key the chosen perception does not read is refused, as with --set (the agent
-    # takes the policy's place, so the policy keys are not checked).
-    check_read(base, set_keys({"perception": overrides.get("perception", {})}))
+    # takes the policy's place, so the policy keys are not checked; it names the cameras).
+    check_read(base, set_keys({"perception": overrides.get("perception", {})}), cameras=tuple(cameras))
     return base
 
 
@@ -129,7 +130,7 @@ class StopSignEnv(gymnasium.Env):
         if not images and perception is None:
             raise ConfigError("images=False with perception=None leaves the agent only its speed; give a perception or images=True")
         self.config = env_config(town=town, placement=placement, sign=sign, speed_kmh=speed_kmh, perception=perception,
-                                 config_overrides=config_overrides)
+                                 config_overrides=config_overrides, cameras=self.cameras)
         self.render_mode = render_mode
         self.images = bool(images)
         self.full_control = bool(full_control)

@@ -54,6 +54,10 @@ IMAGE_SIZE_PX = (CameraConfig().width_px, CameraConfig().height_px)
 
 @dataclass(frozen=True)
 class DataGenConfig:
+    """`avsim detector make-data`'s settings: how many train and validation images, rendered in
+    scenes of `images_per_scene` views each, the dataset `seed`, the worker processes, the farthest
+    target sign [m] and the label format (jsonl, coco or yolo)."""
+
     n_train: int = ranged(6000, 0, 10_000_000)
     n_val: int = ranged(1000, 0, 10_000_000)
     images_per_scene: int = ranged(25, 1, 1000)

@@ -44,6 +44,11 @@ class _ClassTally:
 
 @dataclass(frozen=True)
 class EvalReport:
+    """The detector's quality on a held-out split (module docstring). Dicts are keyed by class
+    name (ap50) or distance bin ("5-15", camera depth to the sign face [m]); recalls are of target
+    stop signs on the front camera with Wilson 95% intervals; false positives per 100 sign-free
+    frames and confidences at `conf_threshold`."""
+
     ap50: dict[str, float]
     recall_by_bin: dict[str, float]
     recall_ci95_by_bin: dict[str, tuple[float, float]]

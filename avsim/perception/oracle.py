@@ -15,6 +15,10 @@ from avsim.world.signs import PlacedSign
 
 
 class OraclePerception(Perception):
+    """Ground truth, explicitly named: each sign's visible box from a segmentation render
+    (`CameraRig.sign_boxes`, in image pixels), confidence 1, once the box is `min_box_height_px`
+    tall (the oracle's range). No network and no pixels of colour: an oracle mode, not a perception."""
+
     name = "oracle"
 
     def __init__(self, model: mujoco.MjModel, signs: tuple[PlacedSign, ...], min_box_height_px: float) -> None:

@@ -33,6 +33,7 @@ class BenchmarkPlan:
     seed: int = 0
 
     def jobs(self) -> list[tuple[RenderSetting, SceneDraw]]:
+        """Every (setting, scene) pair to render: each setting over the same seeded scene draws."""
         return [(setting, scene) for setting in self.settings for scene in scene_draws(self.towns, self.draws_per_town, self.seed)]
 
 

@@ -124,6 +124,9 @@ def cost_table(rows: list[dict]) -> list[str]:
 
 
 def report(rows: list[dict], threshold: float) -> str:
+    """The benchmark's Markdown report of its `rows` (one per frame and network) at detection
+    `threshold`: each setting's render cost [ms], recall (Wilson 95% intervals), stop-sign AP at IoU
+    0.5 and false stop signs per frame, then recall against distance per network and camera."""
     n_frames = len({(r["setting"], r["town"], r["scene"], r["frame"]) for r in rows})
     lines = [f"# Render realism benchmark ({n_frames} frames)", "",
              f"Threshold {threshold}. Recall cells: signs found / signs in view (95 % Wilson interval); found = a "

@@ -60,6 +60,8 @@ class PhotoModel:
 
     @classmethod
     def from_config(cls, config: CameraConfig) -> "PhotoModel":
+        """The stages a camera config asks for: its supersample, the lens sigma [px] from its MTF50
+        [cycles/px] (0: no blur), its JPEG quality."""
         mtf50 = config.lens_mtf50_cyc_per_px
         return cls(config.supersample, GAUSSIAN_SIGMA_TIMES_MTF50 / mtf50 if mtf50 > 0 else 0.0, config.jpeg_quality)
 

@@ -125,5 +125,7 @@ def ground_textures(flat_colours: dict[str, tuple[float, float, float]]) -> dict
 
 
 def facade_textures(facades: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]) -> dict[str, np.ndarray]:
+    """Facade material name -> its (350, 250, 3) uint8 texture (one bay by one storey, `facade`), from (wall RGB, glass
+    RGB) in [0, 1] each, seeded from TEXTURE_SEED so every build draws the same facades."""
     rng = np.random.default_rng((TEXTURE_SEED, 1))
     return {name: facade(rng, wall, glass) for name, (wall, glass) in facades.items()}

@@ -26,6 +26,10 @@ GRAPH_INPUT_SIZE_PX = 512
 
 
 class CocoCenterNet(nn.Module):
+    """The COCO-80 CenterNet of @vladmandic/human (MobileNetV3), read from its TF.js graph: images
+    (B, 3, H, W) RGB 0-255 with H and W multiples of 32 in, dense maps at stride 4 or decoded
+    detections out; `spec` holds the graph's decoding constants."""
+
     def __init__(self, network: CenterNet, spec: DecodeSpec) -> None:
         super().__init__()
         self.network = network

@@ -139,6 +139,8 @@ class TfConv2d(nn.Module):
         return self._shifted[extra_hw]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, C_in, H, W) NCHW -> (B, C_out, H', W') with TF's SAME or VALID padding and the fused
+        activation; through oneDNN's fused convolution when no gradient is wanted on the CPU."""
         padding, extra = self._padding(x.shape[-2], x.shape[-1])
         if (torch.is_grad_enabled() or self.activation == "Prelu" or x.dtype not in _ONEDNN_DTYPES
                 or x.device.type != "cpu"):
@@ -191,6 +193,7 @@ class Binary(nn.Module):
             self.register_buffer("constant", _channel_constant(constant))
 
     def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
+        """The op on two tensors (broadcast), or on one and the constant ((C, 1, 1) per channel, or a scalar)."""
         if self.constant is None:
             return self.func(inputs[0], inputs[1])
         if self.constant_first:
@@ -209,6 +212,7 @@ class Unary(nn.Module):
         self.func = self._FUNCS[op]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """The op applied elementwise; same shape out."""
         return self.func(x)
 
 
@@ -221,6 +225,7 @@ class Mean(nn.Module):
         self.keep_dims = keep_dims
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """The mean of NCHW `x` over the mapped axes, kept as size 1 when keep_dims."""
         if x.dtype == torch.bfloat16 and self.dims == (2, 3) and not torch.is_grad_enabled():
             # The same float32 sum, divided and rounded once; torch's bf16 mean first copies
             # the whole tensor to float32, which costs three times as much.
@@ -237,6 +242,7 @@ class Concat(nn.Module):
         self.dim = nchw_axis(axis_nhwc)
 
     def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
+        """The NCHW `inputs` joined along the mapped axis."""
         return torch.cat(inputs, dim=self.dim)
 
 
@@ -316,6 +322,7 @@ class ResizeBilinear(nn.Module):
         self.scale_hw = scale_hw
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, C, H, W) -> (B, C, s_h H, s_w W), sampled as TF's legacy bilinear resize."""
         return upsample_bilinear_tf(x, self.scale_hw)
 
 

@@ -144,6 +144,9 @@ def _settings(rows: list[dict]) -> list[str]:
 
 
 def report(rows: list[dict], threshold: float, network: str = "coco") -> str:
+    """The Markdown report of scored frames `rows` (one dict per frame and setting, as written to
+    frames.jsonl) at detection `threshold`: recall per 5-m distance bin [m] and camera with Wilson
+    95% intervals, false stop signs per frame per town, the precisions compared, recall per town."""
     settings = _settings(rows)
     towns = sorted({r["town"] for r in rows})
     bins = [f"{lo}-{hi}" for lo, hi in zip(BIN_EDGES_M[:-1], BIN_EDGES_M[1:])]
@@ -286,6 +289,7 @@ def compare_precisions(rows: list[dict]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """`python -m avsim.perception.coco.realism` (module docstring); returns the exit status."""
     parser = OneLineArgumentParser(prog="python -m avsim.perception.coco.realism", description=__doc__.split("\n\n")[0])
     parser.add_argument("--network", choices=tuple(NETWORKS), default="coco", help="coco (default) or yolo")
     parser.add_argument("--data", nargs="+", required=True, help="datasets written by `avsim detector make-data`")

@@ -23,6 +23,11 @@ from avsim.perception.detector.letterbox import Letterbox
 
 @dataclass(frozen=True)
 class AugmentConfig:
+    """Training-time augmentation of the detector (module docstring): the probability and range
+    of a rescale (a factor of the letterbox scale), HSV and contrast jitter (hue in OpenCV units,
+    180 per turn; brightness in grey levels), Gaussian blur [px] and noise [grey levels], and which
+    boxes survive a crop (at least `min_visible` of their area, at least `min_box_px` [px] a side)."""
+
     scale_prob: float = 0.5
     scale_range: tuple[float, float] = (0.8, 1.2)
     hue_shift: float = 4.0  # [OpenCV hue units, 180 per turn]: +-8 deg keeps red signs red

@@ -30,6 +30,8 @@ FOCAL_GAMMA = 2.0
 
 @dataclass(frozen=True)
 class LossWeights:
+    """Weights of the loss terms in the total (module docstring): objectness, class and box."""
+
     obj: float = 1.0
     cls: float = 1.0
     box: float = 2.5

@@ -28,6 +28,9 @@ BN_EPS = 1e-6  # Darknet's normalize_cpu adds it to the standard deviation
 
 @dataclass(frozen=True)
 class WeightsHeader:
+    """The header of a Darknet .weights file: format version (major.minor.revision), the images
+    `seen` in training, and the header's own length in bytes (the weights follow it)."""
+
     major: int
     minor: int
     revision: int
