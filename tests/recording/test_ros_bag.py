@@ -46,6 +46,11 @@ def _read(path) -> dict[str, list[tuple[int, object]]]:
     return messages
 
 
+def _stamp_ns(message) -> int:
+    """A message's header stamp [ns]."""
+    return message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+
+
 def _rotation(q) -> np.ndarray:
     """3x3 rotation of a geometry_msgs/Quaternion."""
     m = np.zeros(9)
@@ -291,6 +296,13 @@ def test_the_foxglove_layout_names_only_topics_and_fields_the_bag_has(bag):
                 value = getattr(value, key)
                 value = value[int(index.rstrip("]"))] if index else value
             assert isinstance(value, float), path["value"]
+            # A header stamp on a message without a header plots nothing (Foxglove drew an empty
+            # throttle/brake plot so); the receive time is the bag's log time, the sensing time.
+            if path.get("timestampMethod") == "headerStamp":
+                assert hasattr(message, "header"), f"{path['value']}: {topic} has no header; use receiveTime"
+            else:
+                assert path.get("timestampMethod") == "receiveTime", path
+                assert [t for t, _ in messages[topic]] == [_stamp_ns(m) for _, m in messages["/odom"]], topic
     assert topics <= set(messages), topics - set(messages)
 
     def leaves(node):
