@@ -249,6 +249,15 @@ def test_an_error_mid_run_leaves_no_bag(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_the_bags_metadata_names_its_own_file(bag):
+    """The rosbag2 metadata record inside names the bag's final file, not the hidden folder it was
+    written in (whose name holds the process id), so the same run gives the same bytes."""
+    path, _, _, _ = bag
+    with open(path, "rb") as f:
+        (metadata,) = mcap_reader.make_reader(f).iter_metadata()
+    assert f"path: {path.name}\n" in metadata.metadata["serialized_metadata"]
+
+
 def test_jpeg_images_are_smaller_and_decode(tmp_path):
     config = make_config(scenario={"start_dist_m": 30.0, "speed_kmh": 40.0, "start_speed_kmh": 40.0})
     sizes = {}
