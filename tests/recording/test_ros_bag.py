@@ -225,6 +225,27 @@ def test_a_bag_without_images_is_one_line_and_exit_2(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_replay_prints_a_foreign_bags_images_one_json_line_each(bag, tmp_path, capsys):
+    """Someone else's bag: no /avsim/run (avsim's default perception), a camera avsim does not know
+    (searched whole), and no --out: one JSON line per image on stdout."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    _, _, _, frames = bag
+    store, topic = ros_types.typestore(), "/usb_cam/image_raw/compressed"
+    image_type = "sensor_msgs/msg/CompressedImage"
+    png = np.frombuffer(cv2.imencode(".png", frames[-1]["front"][..., ::-1])[1].tobytes(), np.uint8)
+    with Writer(tmp_path / "foreign", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection(topic, image_type, typestore=store)
+        message = store.types[image_type](header=ros_types.header(1.5, "usb_cam"), format="png", data=png)
+        writer.write(connection, 1_500_000_000, store.serialize_cdr(message, image_type))
+    capsys.readouterr()
+    assert cli.main(["replay", str(tmp_path / "foreign"), "--perception", "detector"]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    record = json.loads(line)
+    assert (record["topic"], record["camera"], record["stamp_ns"], record["width"]) == (topic, topic, 1_500_000_000, 640)
+    assert [d["class"] for d in record["detections"]] == ["stop_sign"]
+
+
 def test_run_mcap_refuses_a_bad_path_before_running(tmp_path, capsys):
     for bad in (tmp_path / "run.bag", tmp_path / "a_file" / "run.mcap"):
         (tmp_path / "a_file").write_text("")
