@@ -86,6 +86,12 @@ def test_every_message_deserialises_and_each_step_has_one_per_topic(bag):
         times = [t for t, _ in messages[topic]]
         assert times == sorted(set(times)), topic  # stamps increase
         assert times == [round(r.time_s * 1e9) for r in output.records]
+        # Each message's own stamp is that simulated time too: /clock's value, every header's stamp.
+        for log_ns, message in messages[topic]:
+            if topic == "/clock":
+                assert message.clock.sec * 1_000_000_000 + message.clock.nanosec == log_ns
+            elif hasattr(message, "header"):
+                assert _stamp_ns(message) == log_ns, topic
     assert len(messages["/tf_static"]) == 1 and len(messages["/avsim/run"]) == 1 and len(messages["/scene"]) == 1
     (_, scene), = messages["/scene"]
     assert {m.ns for m in scene.markers} == {"road", "stop_line", "stop_sign", "car"}
