@@ -139,9 +139,12 @@ class BagRecorder(StepRecorder):
         self._result: RunResult | None = None
         self._braked = False
         self._path.parent.mkdir(parents=True, exist_ok=True)
-        # rosbags writes a bag folder; it is made beside `path` (one file system, so the move is atomic).
+        # rosbags writes a bag folder, <folder>/<folder name>.mcap; it is made inside a hidden folder
+        # beside `path` (one file system, so the move is atomic) and named after `path`, so the
+        # file's rosbag2 metadata record names the final file and the same run gives the same bytes.
         self._tmp_dir = self._path.with_name(f".{self._path.name}.{os.getpid()}.{secrets.token_hex(6)}.bag")
-        self._writer = Writer(self._tmp_dir, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._bag_dir = self._tmp_dir / self._path.stem
+        self._writer = Writer(self._bag_dir, version=9, storage_plugin=StoragePlugin.MCAP)
         # PNG and JPEG data are compressed already; zstd chunks still save about a fifth
         # (docs/ros.md) for well under a millisecond a step.
         self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
@@ -170,7 +173,7 @@ class BagRecorder(StepRecorder):
         last_ns = time_ns(self._pending.time_s)
         self._write(RUN_TOPIC, last_ns, self._types["std_msgs/msg/String"](data=json.dumps(payload, sort_keys=True)))
         self._writer.close()
-        os.replace(self._tmp_dir / f"{self._tmp_dir.name}.mcap", self._path)
+        os.replace(self._bag_dir / f"{self._bag_dir.name}.mcap", self._path)
         shutil.rmtree(self._tmp_dir)
 
     def _discard(self) -> None:

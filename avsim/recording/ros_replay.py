@@ -96,7 +96,8 @@ def _run_config(reader: Any, overrides: Mapping[str, Any]) -> SimConfig:
     on the perception's."""
     base = SimConfig()
     runs = [c for c in reader.connections if c.topic == RUN_TOPIC]
-    for _, _, raw in reader.messages(connections=runs):
+    # An empty connection list would read every message of the bag: someone else's has no run.
+    for _, _, raw in reader.messages(connections=runs) if runs else ():
         recorded = json.loads(reader.deserialize(raw, runs[0].msgtype).data)["config"]
         base = with_overrides(base, {"camera": recorded["camera"], "perception": recorded["perception"]})
     return with_overrides(base, {"perception": dict(overrides)})

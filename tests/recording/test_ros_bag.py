@@ -46,6 +46,11 @@ def _read(path) -> dict[str, list[tuple[int, object]]]:
     return messages
 
 
+def _stamp_ns(message) -> int:
+    """A message's header stamp [ns]."""
+    return message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+
+
 def _rotation(q) -> np.ndarray:
     """3x3 rotation of a geometry_msgs/Quaternion."""
     m = np.zeros(9)
@@ -81,6 +86,12 @@ def test_every_message_deserialises_and_each_step_has_one_per_topic(bag):
         times = [t for t, _ in messages[topic]]
         assert times == sorted(set(times)), topic  # stamps increase
         assert times == [round(r.time_s * 1e9) for r in output.records]
+        # Each message's own stamp is that simulated time too: /clock's value, every header's stamp.
+        for log_ns, message in messages[topic]:
+            if topic == "/clock":
+                assert message.clock.sec * 1_000_000_000 + message.clock.nanosec == log_ns
+            elif hasattr(message, "header"):
+                assert _stamp_ns(message) == log_ns, topic
     assert len(messages["/tf_static"]) == 1 and len(messages["/avsim/run"]) == 1 and len(messages["/scene"]) == 1
     (_, scene), = messages["/scene"]
     assert {m.ns for m in scene.markers} == {"road", "stop_line", "stop_sign", "car"}
@@ -220,6 +231,27 @@ def test_a_bag_without_images_is_one_line_and_exit_2(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_replay_prints_a_foreign_bags_images_one_json_line_each(bag, tmp_path, capsys):
+    """Someone else's bag: no /avsim/run (avsim's default perception), a camera avsim does not know
+    (searched whole), and no --out: one JSON line per image on stdout."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    _, _, _, frames = bag
+    store, topic = ros_types.typestore(), "/usb_cam/image_raw/compressed"
+    image_type = "sensor_msgs/msg/CompressedImage"
+    png = np.frombuffer(cv2.imencode(".png", frames[-1]["front"][..., ::-1])[1].tobytes(), np.uint8)
+    with Writer(tmp_path / "foreign", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection(topic, image_type, typestore=store)
+        message = store.types[image_type](header=ros_types.header(1.5, "usb_cam"), format="png", data=png)
+        writer.write(connection, 1_500_000_000, store.serialize_cdr(message, image_type))
+    capsys.readouterr()
+    assert cli.main(["replay", str(tmp_path / "foreign"), "--perception", "detector"]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    record = json.loads(line)
+    assert (record["topic"], record["camera"], record["stamp_ns"], record["width"]) == (topic, topic, 1_500_000_000, 640)
+    assert [d["class"] for d in record["detections"]] == ["stop_sign"]
+
+
 def test_run_mcap_refuses_a_bad_path_before_running(tmp_path, capsys):
     for bad in (tmp_path / "run.bag", tmp_path / "a_file" / "run.mcap"):
         (tmp_path / "a_file").write_text("")
@@ -242,6 +274,15 @@ def test_an_error_mid_run_leaves_no_bag(tmp_path, monkeypatch):
     finally:
         loop.close()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_bags_metadata_names_its_own_file(bag):
+    """The rosbag2 metadata record inside names the bag's final file, not the hidden folder it was
+    written in (whose name holds the process id), so the same run gives the same bytes."""
+    path, _, _, _ = bag
+    with open(path, "rb") as f:
+        (metadata,) = mcap_reader.make_reader(f).iter_metadata()
+    assert f"path: {path.name}\n" in metadata.metadata["serialized_metadata"]
 
 
 def test_jpeg_images_are_smaller_and_decode(tmp_path):
@@ -291,6 +332,13 @@ def test_the_foxglove_layout_names_only_topics_and_fields_the_bag_has(bag):
                 value = getattr(value, key)
                 value = value[int(index.rstrip("]"))] if index else value
             assert isinstance(value, float), path["value"]
+            # A header stamp on a message without a header plots nothing (Foxglove drew an empty
+            # throttle/brake plot so); the receive time is the bag's log time, the sensing time.
+            if path.get("timestampMethod") == "headerStamp":
+                assert hasattr(message, "header"), f"{path['value']}: {topic} has no header; use receiveTime"
+            else:
+                assert path.get("timestampMethod") == "receiveTime", path
+                assert [t for t, _ in messages[topic]] == [_stamp_ns(m) for _, m in messages["/odom"]], topic
     assert topics <= set(messages), topics - set(messages)
 
     def leaves(node):
