@@ -98,7 +98,8 @@ def test_the_attack_experiment_files_load_with_their_seeds():
                 "range_inflation_adjusted.toml": (20, "attack_success"),
                 "driveby_detector_town07.toml": (20, "attack_success"),
                 "sensitivity_coco_town10.toml": (5, "sensitivity"),
-                "success_yolo.toml": (20, "attack_success"), "success_yolo_towns.toml": (5, "attack_success")}
+                "success_yolo.toml": (20, "attack_success"), "success_yolo_towns.toml": (5, "attack_success"),
+                "sensitivity_yolo_town03.toml": (5, "sensitivity")}
     assert sorted(p.name for p in ATTACK_EXPERIMENTS.glob("*.toml")) == sorted(expected)
     for name, (seeds, report) in expected.items():
         experiment = load_experiment(ATTACK_EXPERIMENTS / name)
