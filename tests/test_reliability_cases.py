@@ -112,6 +112,13 @@ INTERNAL = {
     "sweep --resume: an infinite distance": Case(
         ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "line 1",
         files={"out/results.jsonl": _record(0, sign_margin_m=float("inf")) + _record(1)}),
+    "sweep --resume: a negative time to stop": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "time_to_stop_s",
+        files={"out/results.jsonl": _record(0) + _record(1, time_to_stop_s=-2.0)}),
+    "sweep --resume: a brake command above full": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "max_brake",
+        files={"out/results.jsonl": _record(0, max_brake=1.5)}),
+    "replay: a folder that is no bag": Case(["replay", "{tmp}/notabag"], "metadata.yaml", files={"notabag/keep": ""}),
     "sweep --resume: a seed that is text": Case(
         ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "seed",
         files={"out/results.jsonl": _record(0) + _record(1).replace('"seed": 1', '"seed": "1"')}),
@@ -131,6 +138,8 @@ MEANINGLESS = {
     "run: --json and --mp4 on one file": Case(["run", *ORACLE, "--json", "{tmp}/x.mp4", "--mp4", "{tmp}/x.mp4"], "both write"),
     "run: --rrd and --json through a ./ path": Case(["run", *ORACLE, "--rrd", "{tmp}/a.rrd", "--json", "{tmp}/./a.rrd"],
                                                     "both write"),
+    "detector eval: a split that lists no image": Case(["detector", "eval", "--data", "{tmp}/d", "--out", "{tmp}/ev"],
+                                                       "lists no images", files={"d/val.jsonl": "\n"}),
     "detector eval --conf 0": Case(["detector", "eval", "--conf", "0", "--out", "{tmp}/ev"], "--conf"),
     "detector eval --conf -inf": Case(["detector", "eval", "--conf=-inf", "--out", "{tmp}/ev"], "--conf"),
     "attack generate --set eps=0": Case(["attack", "generate", "--method", "lu_v3", "--set", "eps=0", "--out", "{tmp}/t.png"],

@@ -55,6 +55,8 @@ def replay(bag: str | os.PathLike, perception_overrides: Mapping[str, Any] | Non
     path = Path(bag)
     if not path.exists():
         raise BagError(f"bag {path} does not exist; pass an .mcap file or a ROS bag folder")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise BagError(f"{path} is a folder without a metadata.yaml, so no ROS bag; pass an .mcap file or a ROS bag folder")
     try:
         with AnyReader([path], default_typestore=ros_types.typestore()) as reader:
             images = [c for c in reader.connections if c.msgtype == IMAGE_TYPE]
