@@ -226,6 +226,7 @@ ENTRY_POINTS = {
     "bench_latency --threads 0": ("avsim.bench.detector_latency", ["--threads", "0"], "--threads"),
     "detector.train --lr nan": ("avsim.perception.detector.train", ["--data", "d", "--out", "w.pt", "--lr", "nan"], "--lr"),
     "coco.realism --threshold 1": ("avsim.perception.coco.realism", ["--data", "d", "--threshold", "1"], "--threshold"),
+    "world.textures --out x (it takes no arguments)": ("avsim.world.textures", ["--out", "x"], "unrecognized arguments"),
 }
 
 
