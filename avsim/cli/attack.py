@@ -15,7 +15,7 @@ from avsim.cli.recording_modes import add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output
-from avsim.outputs import FILE, FOLDER, add_output_argument
+from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument
 from avsim.validation import config_flag, number_flag, number_list_flag
 
 STEPS_FLAG = number_flag(1, 100_000, integer=True)
@@ -130,7 +130,7 @@ def add_commands(sub) -> None:
     gen.add_argument("--method", help="chen, eykholt, lu_v2, lu_v3, yang, driveby or range_inflation")
     add_output_argument(gen, "--out", kind=FILE, suffix=".png", companions=(".json",), required=True,
                         help="PNG to write (a JSON record is written beside it)")
-    gen.add_argument("--from", dest="from_json", metavar="JSON",
+    add_input_argument(gen, "--from", dest="from_json", metavar="JSON",
                      help="regenerate the texture a record describes (e.g. textures/driveby_detector.json): the same "
                           "method, hyperparameters, seed, detector, view bank and budget")
     gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
@@ -139,7 +139,7 @@ def add_commands(sub) -> None:
     gen.add_argument("--seed", type=SEED_FLAG)
     gen.add_argument("--steps", type=STEPS_FLAG, help="optimisation steps (default: the method's)")
     gen.add_argument("--views-per-step", type=number_flag(1, 1000, integer=True), help="EOT views per step (default: the method's)")
-    gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
+    add_input_argument(gen, "--weights", default="", help="detector weights (default: the shipped ones)")
     gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
     gen.add_argument("--cameras",
@@ -177,8 +177,8 @@ def add_commands(sub) -> None:
                     help="comma-separated budgets (eps, eps_peak or sticker area fraction), each in (0, 1]")
     sw.add_argument("--steps", type=STEPS_FLAG, default=100, help="optimisation steps per budget")
     sw.add_argument("--seed", type=SEED_FLAG, default=0)
-    sw.add_argument("--weights", default="")
-    sw.add_argument("--closed-loop", metavar="FILE",
+    add_input_argument(sw, "--weights", default="")
+    add_input_argument(sw, "--closed-loop", metavar="FILE",
                     help="also drive past every texture and the clean sign under this attack-success experiment "
                          "file's \"clean\" cell and seeds (e.g. experiments/attacks/success_town07.toml), and report "
                          "the success rate (Wilson 95%%), overrun and braking delay per budget")
