@@ -98,6 +98,8 @@ INTERNAL = {
                                                   "--out", "{tmp}/t.png"], "an integer"),
     "attack sweep --budgets 0.1,,0.2": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1,,0.2",
                                              "--out", "{tmp}/o"], "--budgets"),
+    "attack sweep --workers 0": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--workers", "0",
+                                      "--out", "{tmp}/o"], "must be an integer in [1, 64]"),
     "attack sweep --budgets inf": Case(["attack", "sweep", "--method", "chen", "--budgets", "inf", "--out", "{tmp}/o"],
                                        "--budgets"),
     "sweep: 20 values x 1000 seeds without --yes": Case(

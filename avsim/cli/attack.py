@@ -154,7 +154,7 @@ def add_commands(sub) -> None:
                                       "in the forward pass and is the identity in the backward pass (default none)")
     gen.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), default=85.0,
                      help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
-    gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",
+    gen.add_argument("--threads", type=number_flag(1, 64, integer=True), default=2, metavar="N",
                      help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
     gen.set_defaults(func=_cmd_attack_generate)
     ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
@@ -182,7 +182,7 @@ def add_commands(sub) -> None:
                     help="also drive past every texture and the clean sign under this attack-success experiment "
                          "file's \"clean\" cell and seeds (e.g. experiments/attacks/success_town07.toml), and report "
                          "the success rate (Wilson 95%%), overrun and braking delay per budget")
-    sw.add_argument("--workers", type=int, default=1, choices=range(1, 65), metavar="N",
+    sw.add_argument("--workers", type=number_flag(1, 64, integer=True), default=1, metavar="N",
                     help="closed-loop runs at once (default 1)")
     add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
     add_recording_modes(sw, "with --closed-loop: ")
