@@ -25,7 +25,7 @@ import warnings
 from collections.abc import Callable
 
 from avsim.errors import AvsimError, Interrupted
-from avsim.termination import handle_termination, interrupt_exit_status, interrupt_word
+from avsim.termination import handle_termination, interrupt_exit_status, interrupt_word, raise_if_interrupted
 
 
 def run_guarded(body: Callable[[], int | None], *, prog: str = "avsim", debug: bool = False) -> int:
@@ -49,16 +49,24 @@ def _run(body: Callable[[], int | None], prog: str, debug: bool) -> int:
     except AvsimError as exc:
         return _report(f"{prog}: error: {exc}", exc.exit_code, debug)
     except KeyboardInterrupt:
-        return _report(f"{prog}: {interrupt_word()}; every file is written whole or not at all, so none is half-written",
-                       interrupt_exit_status(), debug)
+        return _interrupted(prog, debug)
     except OSError as exc:  # the machine's: a full disk, a folder removed under a running command
         where = _save_traceback()
         return _report(f"{prog}: error: {exc.strerror or exc}" + (f": '{exc.filename}'" if exc.filename else "")
                        + f" (full traceback in {where}, or rerun with --debug)", 1, debug)
     except Exception as exc:  # noqa: BLE001 - the one place that turns a bug into one line and a file
+        try:
+            raise_if_interrupted(exc)  # a Ctrl-C that a C call wrapped in another exception
+        except KeyboardInterrupt:
+            return _interrupted(prog, debug)
         where = _save_traceback()
         return _report(f"{prog}: internal error: {type(exc).__name__}: {one_line(str(exc))} (a bug in avsim; "
                        f"full traceback in {where}, or rerun with --debug)", 1, debug)
+
+
+def _interrupted(prog: str, debug: bool) -> int:
+    return _report(f"{prog}: {interrupt_word()}; every file is written whole or not at all, so none is half-written",
+                   interrupt_exit_status(), debug)
 
 
 def _report(message: str, status: int, debug: bool) -> int:

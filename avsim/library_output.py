@@ -7,8 +7,11 @@
 - rerun's Rust core logs its file writer's failure (a full disk) in three coloured lines before
   avsim reports it as one `OutputError` (`avsim.recording.rerun_log`). `quiet_rust_logs` turns
   that logging off unless the user set RUST_LOG.
+- OpenCV's video writer logs "Failed to write frame" for every frame a full disk refuses, and
+  goes on; avsim reads the file back and reports it as one `OutputError`
+  (`avsim.recording.video`). `quiet_opencv_logs` keeps OpenCV to its errors.
 
-The command line (`avsim.cli`) calls both; the Python API leaves the libraries' defaults alone.
+The command line (`avsim.cli`) calls all three; the Python API leaves the libraries' defaults alone.
 """
 
 from __future__ import annotations
@@ -25,6 +28,13 @@ def route_mujoco_warnings_to_log() -> None:
     import mujoco
 
     mujoco.set_mju_user_warning(lambda message: _LOG.debug("MuJoCo: %s", message))
+
+
+def quiet_opencv_logs() -> None:
+    """OpenCV's own log at errors only (its warnings repeat once a frame for one failed file)."""
+    import cv2
+
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
 
 
 def quiet_rust_logs() -> None:

@@ -35,6 +35,7 @@ from avsim.perception.frame import FramePerception, FrameRequest, detect_many
 from avsim.metrics import RunResult
 from avsim.plausibility import check_meaningful
 from avsim.runner import RunOutput, finish_recorders, open_recorders, step_hook
+from avsim.termination import raise_if_interrupted
 
 
 class _Car:
@@ -69,6 +70,7 @@ def run_lockstep(configs: Sequence[SimConfig], *, recordings: Sequence[Mapping[s
             try:
                 car = _start(config, detectors, recordings[index])
             except Exception as exc:  # noqa: BLE001 - this run failed; the batch goes on
+                raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
                 outputs[index] = exc
                 continue
             car.wall_s = time.perf_counter() - started
@@ -118,6 +120,7 @@ def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]]) -> lis
             else:
                 out.append(loop.perceive(cameras))
         except Exception as exc:  # noqa: BLE001 - this car's failure, not the batch's
+            raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
             out.append(exc)
     for group in groups.values():
         group = [(index, request) for index, request in group if not isinstance(out[index], Exception)]
@@ -146,6 +149,7 @@ def _tick(cars: dict[int, _Car]) -> dict[int, Exception]:
             if car.on_step is not None:
                 car.on_step(car.loop, record)
         except Exception as exc:  # noqa: BLE001
+            raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
             failed[index] = exc
     return failed
 
@@ -159,6 +163,7 @@ def _finish(car: _Car) -> RunOutput | Exception:
         car.stack.close()
     except Exception as exc:  # noqa: BLE001
         _abandon(car)
+        raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
         return exc
     loop.close()
     return RunOutput(result, tuple(loop.records), car.wall_s)

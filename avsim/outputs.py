@@ -1,11 +1,13 @@
 """Output files: checked before any work starts, written to temporary names, never claimed unwritten.
 
-Every command declares its output arguments with `add_output_argument`; `avsim.cli.main`
-checks them all with `check_declared_outputs` before the command runs, so a path that
-cannot be written is one line and exit 2 before the simulator is built:
+Every command declares its output arguments with `add_output_argument`, and the files it reads
+with `add_input_argument`; `avsim.cli.main` checks them all with `check_declared_outputs` before
+the command runs, so a path that cannot be written, or would replace a file the command reads,
+is one line and exit 2 before the simulator is built:
 
     add_output_argument(run, "--json", kind=FILE, help="write the result record to this JSON file")
     add_output_argument(snap, "--out", kind=PREFIX, suffixes=("_front.png", "_side.png"), default="snapshot")
+    add_input_argument(run, "--config", help="experiment file")   # --json onto it is refused
 
 What "can be written" means, for every command alike:
 - the name is not empty;
@@ -40,8 +42,9 @@ from avsim.errors import OutputError
 
 FILE, FOLDER, PREFIX = "file", "folder", "prefix"
 KINDS = (FILE, FOLDER, PREFIX)
-# argparse default holding a subcommand's OutputArgs.
+# argparse defaults holding a subcommand's OutputArgs, and its inputs' (dest, flag) pairs.
 _DEFAULT_KEY = "output_args"
+_INPUTS_KEY = "input_args"
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,14 @@ def add_output_argument(parser: argparse.ArgumentParser, flag: str, *, kind: str
     return action
 
 
+def add_input_argument(parser: argparse.ArgumentParser, flag: str, **kwargs: Any) -> argparse.Action:
+    """`parser.add_argument(flag, **kwargs)`, declared as a file or folder the command reads (a
+    value, or a list with nargs), so that `check_declared_outputs` refuses an output onto it."""
+    action = parser.add_argument(flag, **kwargs)
+    parser.set_defaults(**{_INPUTS_KEY: (*(parser.get_default(_INPUTS_KEY) or ()), (action.dest, flag))})
+    return action
+
+
 def declared_outputs(parser: argparse.ArgumentParser) -> tuple[OutputArg, ...]:
     """The output arguments `add_output_argument` declared on `parser` (none: an empty tuple)."""
     return parser.get_default(_DEFAULT_KEY) or ()
@@ -83,7 +94,8 @@ def declared_outputs(parser: argparse.ArgumentParser) -> tuple[OutputArg, ...]:
 
 def check_declared_outputs(args: argparse.Namespace) -> None:
     """Check every output the parsed command declared (None: not asked for); raises OutputError,
-    also when two outputs name one path (one would silently replace the other)."""
+    also when two outputs name one path (one would silently replace the other) or an output names
+    an existing file or folder the command reads (it would replace its own input)."""
     claimed: dict[Path, str] = {}  # resolved path -> the flag that writes it
     for spec in getattr(args, _DEFAULT_KEY, ()):
         value = getattr(args, spec.dest, None)
@@ -102,6 +114,14 @@ def check_declared_outputs(args: argparse.Namespace) -> None:
             if key in claimed and claimed[key] != spec.flag:
                 raise OutputError(f"{claimed[key]} and {spec.flag} both write {path}; give each output its own path")
             claimed[key] = spec.flag
+    for dest, flag in getattr(args, _INPUTS_KEY, ()):
+        values = getattr(args, dest, None)
+        for value in values if isinstance(values, list) else [values]:
+            # Only a path that exists: an input may also be a name (--sign clean), not a file.
+            if value and Path(value).exists() and Path(value).resolve() in claimed:
+                reader = flag if flag.startswith("-") else f"the {flag} argument"
+                raise OutputError(f"{claimed[Path(value).resolve()]} would replace {value}, which {reader} reads; "
+                                  "give the output its own path")
 
 
 def check_output_file(path: str | os.PathLike, flag: str, *, suffix: str | None = None) -> Path:

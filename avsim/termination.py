@@ -14,6 +14,7 @@ its caller's signals.
 
 from __future__ import annotations
 
+import ctypes
 import signal
 import threading
 
@@ -29,6 +30,27 @@ class Terminated(KeyboardInterrupt):
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
+
+
+def raise_if_interrupted(exc: BaseException) -> None:
+    """Re-raise the Ctrl-C or termination signal that `exc` stands for; do nothing otherwise.
+
+    A signal that lands inside a C call can come back as another exception: ctypes (under
+    PyOpenGL's EGL calls) reports a KeyboardInterrupt raised while it converted an argument as
+    an `ArgumentError` that only names it, and a library may chain one. A broad `except
+    Exception` that turns errors into a user's error or a failed run calls this first, so the
+    command stops as a Ctrl-C does (exit 130, 143 or 129) instead of blaming the environment.
+    """
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt):
+            raise seen
+        seen = seen.__cause__ or seen.__context__
+    if isinstance(exc, ctypes.ArgumentError):
+        if f": {Terminated.__name__}: " in str(exc) and _received is not None:
+            raise Terminated(_received) from None
+        if ": KeyboardInterrupt" in str(exc):
+            raise KeyboardInterrupt from None
 
 
 def _on_signal(signum: int, frame) -> None:

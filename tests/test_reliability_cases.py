@@ -98,6 +98,8 @@ INTERNAL = {
                                                   "--out", "{tmp}/t.png"], "an integer"),
     "attack sweep --budgets 0.1,,0.2": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1,,0.2",
                                              "--out", "{tmp}/o"], "--budgets"),
+    "attack sweep --workers 0": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--workers", "0",
+                                      "--out", "{tmp}/o"], "must be an integer in [1, 64]"),
     "attack sweep --budgets inf": Case(["attack", "sweep", "--method", "chen", "--budgets", "inf", "--out", "{tmp}/o"],
                                        "--budgets"),
     "sweep: 20 values x 1000 seeds without --yes": Case(
@@ -112,6 +114,14 @@ INTERNAL = {
     "sweep --resume: an infinite distance": Case(
         ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "line 1",
         files={"out/results.jsonl": _record(0, sign_margin_m=float("inf")) + _record(1)}),
+    "sweep --resume: a negative time to stop": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "time_to_stop_s",
+        files={"out/results.jsonl": _record(0) + _record(1, time_to_stop_s=-2.0)}),
+    "sweep --resume: a brake command above full": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "max_brake",
+        files={"out/results.jsonl": _record(0, max_brake=1.5)}),
+    "replay: an .mcap cut after its magic": Case(["replay", "{tmp}/b.mcap"], "cut short", files={"b.mcap": b"\x89MCAP0\r\n"}),
+    "replay: a folder that is no bag": Case(["replay", "{tmp}/notabag"], "metadata.yaml", files={"notabag/keep": ""}),
     "sweep --resume: a seed that is text": Case(
         ["sweep", str(SMOKE), "--out", "{tmp}/out", "--resume"], "seed",
         files={"out/results.jsonl": _record(0) + _record(1).replace('"seed": 1', '"seed": "1"')}),
@@ -129,8 +139,18 @@ MEANINGLESS = {
         ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "blind",
         files={"s.toml": 'title = "t"\n[defaults]\nperception = { kind = "none" }\n[grid]\n"policy.name" = ["autopilot", "temporal_vote"]\n'}),
     "run: --json and --mp4 on one file": Case(["run", *ORACLE, "--json", "{tmp}/x.mp4", "--mp4", "{tmp}/x.mp4"], "both write"),
+    "run: --json onto its own --config": Case(["run", "--config", "{tmp}/e.toml", "--json", "{tmp}/e.toml"], "--config reads",
+                                              files={"e.toml": 'title = "t"\n[[cells]]\nname = "a"\n'}),
+    "run: --rrd onto its --sign texture": Case(["run", *ORACLE, "--sign", "{tmp}/s.rrd", "--rrd", "{tmp}/./s.rrd"],
+                                               "--sign reads", files={"s.rrd": _png_header(64, 64)}),
+    "attack generate: its record beside --out is the --from record": Case(
+        ["attack", "generate", "--from", "{tmp}/t.json", "--out", "{tmp}/t.png"], "--from reads", files={"t.json": "{}"}),
+    "replay --out onto its bag": Case(["replay", "{tmp}/b.mcap", "--out", "{tmp}/b.mcap"], "the bag argument reads",
+                                      files={"b.mcap": b"\x89MCAP0\r\n"}),
     "run: --rrd and --json through a ./ path": Case(["run", *ORACLE, "--rrd", "{tmp}/a.rrd", "--json", "{tmp}/./a.rrd"],
                                                     "both write"),
+    "detector eval: a split that lists no image": Case(["detector", "eval", "--data", "{tmp}/d", "--out", "{tmp}/ev"],
+                                                       "lists no images", files={"d/val.jsonl": "\n"}),
     "detector eval --conf 0": Case(["detector", "eval", "--conf", "0", "--out", "{tmp}/ev"], "--conf"),
     "detector eval --conf -inf": Case(["detector", "eval", "--conf=-inf", "--out", "{tmp}/ev"], "--conf"),
     "attack generate --set eps=0": Case(["attack", "generate", "--method", "lu_v3", "--set", "eps=0", "--out", "{tmp}/t.png"],
@@ -173,8 +193,9 @@ def no_work(monkeypatch):
     monkeypatch.setattr(avsim.attacks.view_bank, "build_view_bank", _boom)
 
 
-def _files_under(root: Path) -> set[str]:
-    return {str(p.relative_to(root)) for p in root.rglob("*")}
+def _files_under(root: Path) -> dict[str, bytes | None]:
+    """Every path under `root` with its bytes (None for a folder): a refusal leaves each as it was."""
+    return {str(p.relative_to(root)): p.read_bytes() if p.is_file() else None for p in root.rglob("*")}
 
 
 def _run_case(case: Case, tmp_path: Path, capsys, monkeypatch) -> None:
@@ -190,7 +211,7 @@ def _run_case(case: Case, tmp_path: Path, capsys, monkeypatch) -> None:
     assert case.mention in captured.err, captured.err
     assert "internal error" not in captured.err and "Traceback" not in captured.err
     assert captured.out == ""
-    assert _files_under(tmp_path) == before  # no output file, no temporary file, no folder
+    assert _files_under(tmp_path) == before  # no output file, no temporary file, no folder, no input replaced
 
 
 @pytest.mark.parametrize("case", list(INTERNAL.values()), ids=list(INTERNAL))
@@ -217,6 +238,7 @@ ENTRY_POINTS = {
     "bench_latency --threads 0": ("avsim.bench.detector_latency", ["--threads", "0"], "--threads"),
     "detector.train --lr nan": ("avsim.perception.detector.train", ["--data", "d", "--out", "w.pt", "--lr", "nan"], "--lr"),
     "coco.realism --threshold 1": ("avsim.perception.coco.realism", ["--data", "d", "--threshold", "1"], "--threshold"),
+    "world.textures --out x (it takes no arguments)": ("avsim.world.textures", ["--out", "x"], "unrecognized arguments"),
 }
 
 

@@ -66,3 +66,46 @@ def test_sigterm_during_a_sweep_keeps_the_finished_runs_and_a_resume_loses_nothi
     strip = lambda records: [{k: v for k, v in r.items() if k != "wall_s"} for r in records]  # noqa: E731
     assert strip(read_records(results)) == strip(expected)
     assert os.path.exists(out / "summary.md")
+
+
+def _ctypes_error_of(interruption: BaseException) -> Exception:
+    """What ctypes raises when `interruption` lands while it converts a C call's argument (as under
+    PyOpenGL's EGL calls): an ArgumentError that only names it."""
+    import ctypes
+
+    class Raising:
+        @classmethod
+        def from_param(cls, value):
+            raise interruption
+
+    call = ctypes.CDLL(None).abs
+    call.argtypes = [Raising]
+    try:
+        call(1)
+    except ctypes.ArgumentError as exc:
+        return exc
+    raise AssertionError("ctypes did not wrap the interruption")
+
+
+def test_a_ctrl_c_that_ctypes_wrapped_stops_the_command_as_ctrl_c_not_as_a_broken_egl(monkeypatch, capsys):
+    import mujoco
+
+    from avsim import boundary
+    from avsim.sensors import gl
+    from avsim.termination import raise_if_interrupted
+
+    wrapped = _ctypes_error_of(KeyboardInterrupt())
+    with pytest.raises(KeyboardInterrupt):
+        raise_if_interrupted(wrapped)
+    raise_if_interrupted(_ctypes_error_of(ValueError("bad argument")))  # a real error stays one
+    raise_if_interrupted(RuntimeError("no display"))
+
+    def gl_start_hit_by_ctrl_c(*args):
+        raise wrapped
+
+    monkeypatch.setattr(gl.mujoco, "GLContext", gl_start_hit_by_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):  # was: a RenderError, "cannot start offscreen rendering", exit 2
+        gl.OffscreenRenderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 64, 48, segmentation=False)
+    assert boundary.run_guarded(lambda: gl.OffscreenRenderer(None, 64, 48, segmentation=False)) == 130
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "interrupted" in err, err

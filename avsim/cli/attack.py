@@ -15,7 +15,7 @@ from avsim.cli.recording_modes import add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output
-from avsim.outputs import FILE, FOLDER, add_output_argument
+from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument
 from avsim.validation import config_flag, number_flag, number_list_flag
 
 STEPS_FLAG = number_flag(1, 100_000, integer=True)
@@ -130,7 +130,7 @@ def add_commands(sub) -> None:
     gen.add_argument("--method", help="chen, eykholt, lu_v2, lu_v3, yang, driveby or range_inflation")
     add_output_argument(gen, "--out", kind=FILE, suffix=".png", companions=(".json",), required=True,
                         help="PNG to write (a JSON record is written beside it)")
-    gen.add_argument("--from", dest="from_json", metavar="JSON",
+    add_input_argument(gen, "--from", dest="from_json", metavar="JSON",
                      help="regenerate the texture a record describes (e.g. textures/driveby_detector.json): the same "
                           "method, hyperparameters, seed, detector, view bank and budget")
     gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
@@ -139,7 +139,7 @@ def add_commands(sub) -> None:
     gen.add_argument("--seed", type=SEED_FLAG)
     gen.add_argument("--steps", type=STEPS_FLAG, help="optimisation steps (default: the method's)")
     gen.add_argument("--views-per-step", type=number_flag(1, 1000, integer=True), help="EOT views per step (default: the method's)")
-    gen.add_argument("--weights", default="", help="detector weights (default: the shipped ones)")
+    add_input_argument(gen, "--weights", default="", help="detector weights (default: the shipped ones)")
     gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
     gen.add_argument("--cameras",
@@ -154,7 +154,7 @@ def add_commands(sub) -> None:
                                       "in the forward pass and is the identity in the backward pass (default none)")
     gen.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), default=85.0,
                      help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
-    gen.add_argument("--threads", type=int, default=2, choices=range(1, 65), metavar="N",
+    gen.add_argument("--threads", type=number_flag(1, 64, integer=True), default=2, metavar="N",
                      help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
     gen.set_defaults(func=_cmd_attack_generate)
     ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
@@ -177,12 +177,12 @@ def add_commands(sub) -> None:
                     help="comma-separated budgets (eps, eps_peak or sticker area fraction), each in (0, 1]")
     sw.add_argument("--steps", type=STEPS_FLAG, default=100, help="optimisation steps per budget")
     sw.add_argument("--seed", type=SEED_FLAG, default=0)
-    sw.add_argument("--weights", default="")
-    sw.add_argument("--closed-loop", metavar="FILE",
+    add_input_argument(sw, "--weights", default="")
+    add_input_argument(sw, "--closed-loop", metavar="FILE",
                     help="also drive past every texture and the clean sign under this attack-success experiment "
                          "file's \"clean\" cell and seeds (e.g. experiments/attacks/success_town07.toml), and report "
                          "the success rate (Wilson 95%%), overrun and braking delay per budget")
-    sw.add_argument("--workers", type=int, default=1, choices=range(1, 65), metavar="N",
+    sw.add_argument("--workers", type=number_flag(1, 64, integer=True), default=1, metavar="N",
                     help="closed-loop runs at once (default 1)")
     add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
     add_recording_modes(sw, "with --closed-loop: ")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from avsim.cli.flags import BATCH_FLAG, WORKERS_FLAG
 from avsim.cli.recording_modes import add_recording_modes
-from avsim.outputs import FOLDER, add_output_argument
+from avsim.outputs import FOLDER, add_input_argument, add_output_argument
 from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 
@@ -73,7 +73,7 @@ def add_commands(sub) -> None:
     _add_pool_flags(rep, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                          "with --address, at most this many in flight", BACKEND_HELP)
     add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
-    rep.add_argument("--experiments", nargs="+", metavar="FILE",
+    add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
@@ -82,7 +82,7 @@ def add_commands(sub) -> None:
 
     swp = sub.add_parser("sweep", help="run every combination of a sweep file's grid; writes results.jsonl, summary.md "
                                        "and safety_map.png")
-    swp.add_argument("file", help="sweep file (experiments/sweeps/*.toml)")
+    add_input_argument(swp, "file", help="sweep file (experiments/sweeps/*.toml)")
     add_output_argument(swp, "--out", kind=FOLDER, required=True, help="results folder")
     _add_pool_flags(swp, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                          "with --address, at most this many runs in flight (default: the cluster's CPUs)",
@@ -97,7 +97,7 @@ def add_commands(sub) -> None:
 
     board = sub.add_parser("leaderboard", help="every defence against the attacks and on roads that need no stop; "
                                                "writes leaderboard.md, leaderboard.png and results.jsonl")
-    board.add_argument("file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
+    add_input_argument(board, "file", nargs="?", help="leaderboard file (default experiments/leaderboards/defences.toml)")
     add_output_argument(board, "--out", kind=FOLDER, default="results/leaderboard", help="results folder")
     board.add_argument("--quick", action="store_true", help="the file's quick subset (quick_seeds per place and scenario)")
     _add_pool_flags(board, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core)",

@@ -22,7 +22,7 @@ from collections.abc import Iterator, Sequence
 from avsim.boundary import run_guarded
 from avsim.cli import attack, batches, bench, detect, detector, realism, run, snapshot
 from avsim.config import check_seed
-from avsim.library_output import quiet_rust_logs, route_mujoco_warnings_to_log
+from avsim.library_output import quiet_opencv_logs, quiet_rust_logs, route_mujoco_warnings_to_log
 from avsim.outputs import check_declared_outputs
 from avsim.sensors.gl_backend import check_gl_backend
 from avsim.validation import OneLineArgumentParser
@@ -67,6 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_gl_backend()  # before anything imports MuJoCo, which fails at import on a bad MUJOCO_GL
         route_mujoco_warnings_to_log()  # its instability printout would precede the one-line PhysicsError
         quiet_rust_logs()  # rerun's own lines about a full disk would precede the one-line OutputError
+        quiet_opencv_logs()  # and OpenCV's, once a frame, about an .mp4 a full disk cuts
         quiet_resource_tracker()  # a SIGKILLed batch leaves no multiprocessing warning on the terminal
         check_declared_outputs(args)  # before any work: a bad path never costs a finished run
         if getattr(args, "seed", None) is not None:  # every subcommand's --seed, one range

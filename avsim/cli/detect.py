@@ -8,7 +8,7 @@ from pathlib import Path
 
 from avsim.cli.overrides import merge_overrides, parse_set
 from avsim.config_owners import DETECT_UNREAD, check_only_perception_keys, check_read_on_images
-from avsim.outputs import FILE, add_output_argument
+from avsim.outputs import FILE, add_input_argument, add_output_argument
 
 
 def _cmd_detect(args: argparse.Namespace) -> int:
@@ -86,7 +86,7 @@ def add_commands(sub) -> None:
                                          "loop runs it (region of interest, range limit). One JSON line per image: topic, "
                                          "camera, stamp_ns, width, height, perception, detections. The settings start from "
                                          "the bag's own avsim run, if it is one (docs/ros.md).")
-    rep_bag.add_argument("bag", help="the bag: an .mcap file or a bag folder")
+    add_input_argument(rep_bag, "bag", help="the bag: an .mcap file or a bag folder")
     rep_bag.add_argument("--perception", help="detector, coco, ensemble or onnx (default: the bag's own, or detector)")
     rep_bag.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                          help="override a perception key, e.g. --set perception.min_confidence=0.3 (repeatable)")

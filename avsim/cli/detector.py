@@ -9,7 +9,7 @@ import os
 from avsim.cli.flags import INT_FLAG, SEED_FLAG
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output, locked_sibling
-from avsim.outputs import FILE, FOLDER, add_output_argument, check_output_file
+from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument, check_output_file
 from avsim.validation import number_flag
 
 
@@ -95,15 +95,15 @@ def add_commands(sub) -> None:
     export.add_argument("--format", choices=("pt", "onnx"), default="pt",
                         help="pt: deployable PyTorch weights (default); onnx: (1, 3, 480, 640) RGB in [0, 1] -> "
                              "(1, 4 + 3, N) cx, cy, w, h, class scores, for --perception onnx (needs avsim[onnx])")
-    export.add_argument("--checkpoint", help="checkpoint written by `avsim detector train` (required for pt; for onnx "
+    add_input_argument(export, "--checkpoint", help="checkpoint written by `avsim detector train` (required for pt; for onnx "
                                              "the default is the shipped models/sign_detector.pt)")
     add_output_argument(export, "--out", kind=FILE,
                         help="file to write (default models/sign_detector.pt, or models/sign_detector.onnx)")
     export.set_defaults(func=_cmd_export)
 
     evaluate = dsub.add_parser("eval", help="score weights on the held-out split; writes report.md and a plot")
-    evaluate.add_argument("--weights", default="", help="weights file (default: the shipped models/sign_detector.pt)")
-    evaluate.add_argument("--data", default="data/signs", help="dataset directory (default data/signs)")
+    add_input_argument(evaluate, "--weights", default="", help="weights file (default: the shipped models/sign_detector.pt)")
+    add_input_argument(evaluate, "--data", default="data/signs", help="dataset directory (default data/signs)")
     evaluate.add_argument("--split", default="val", choices=("val", "train"))
     evaluate.add_argument("--conf", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
                           help="confidence threshold for recall and false positives")

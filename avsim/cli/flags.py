@@ -11,6 +11,7 @@ from typing import Any
 
 from avsim.cli.overrides import merge_overrides, parse_set
 from avsim.config import LoopConfig, ScenarioConfig
+from avsim.outputs import add_input_argument
 from avsim.validation import config_flag, number_flag
 
 SEED_FLAG = config_flag(ScenarioConfig, "seed")
@@ -26,7 +27,7 @@ def add_scenario_flags(parser: argparse.ArgumentParser) -> None:
     """
     parser.add_argument("--town", help="town name (town03, town07, town10)")
     parser.add_argument("--placement", help="stop-sign placement: standard, near or far")
-    parser.add_argument("--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
+    add_input_argument(parser, "--sign", help="stop-sign texture: 'clean', a name in textures/, a PNG path, or 'none' (no stop sign)")
     parser.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), help="cruise speed [km/h]")
     parser.add_argument("--seed", type=SEED_FLAG, help="random seed (start jitter)")
     parser.add_argument("--physics-dt-s", type=config_flag(LoopConfig, "physics_dt_s"), help="physics step [s] (default 0.002)")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from avsim.cli.flags import add_scenario_flags, config_from_args, flag_overrides
 from avsim.errors import ConfigError
-from avsim.outputs import FILE, add_output_argument
+from avsim.outputs import FILE, add_input_argument, add_output_argument
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -83,7 +83,7 @@ def add_commands(sub) -> None:
                              "commands; needs avsim[ros]; docs/ros.md)")
     run.add_argument("--mcap-images", choices=("png", "jpeg"), default="png",
                      help="how --mcap stores camera images: png (lossless, the default) or jpeg (quality 90, smaller)")
-    run.add_argument("--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
+    add_input_argument(run, "--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
                                       "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")
     run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell of an experiment file)")
     run.set_defaults(func=_cmd_run)

@@ -3,6 +3,7 @@
     specs = [RunSpec("table3_stop_positions", run.cell_name, run.seed, run.config) for run in experiment.runs()]
     records = run_batch(specs, workers=2, on_record=writer.append)
     records = run_batch(specs, workers=2, backend="ray")     # the same runs as Ray tasks
+    records = run_batch(plan, workers=2)                     # a Plan: specs built as the workers need them
 
 Every run is `avsim.runner.run_recorded`, exactly what `avsim run` executes, so one record
 can be re-run alone with `avsim run --config FILE --cell NAME --seed K`. A run that raises
@@ -16,7 +17,9 @@ Backends (`BACKENDS`); both run `run_task.execute_group(specs, root)` for each l
             stops them at once rather than waiting for their runs (`avsim.workers`).
     ray     Ray tasks on a cluster, or on a local one of `workers` CPUs
             (`avsim.experiments.ray_backend`, an optional extra: pip install 'avsim[ray]').
-Records, `on_record` and the progress bar are one code path for both.
+Records, `on_record` and the progress bar are one code path for both. Either draws lock-step
+groups from the specs only as workers free up (`avsim.experiments.plan`), so a plan of any size
+starts its first run at once and is never held whole.
 
 Many cars per process (`batch`, either backend): each worker or Ray task steps up to `batch` runs in
 lock-step (`avsim.lockstep`), one network call per control tick over all their cars' frames.
@@ -28,11 +31,12 @@ A record is one line of `runs.jsonl`; its fields are `avsim.experiments.run_task
 
 from __future__ import annotations
 
+import itertools
 import multiprocessing
 import os
 import platform
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Collection, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
 
 import mujoco
@@ -40,11 +44,15 @@ import numpy
 import torch
 
 from avsim.errors import ConfigError
+from avsim.experiments.plan import Counted, Group, count_of, group_size, in_flight, lockstep_groups, specs_of
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
 from avsim.experiments.run_task import RunSpec, execute_group, worker_env
 from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
+# Lock-step groups handed to a local pool per worker at a time: one running and one queued, so a
+# worker never waits for this process to build its next group, and a plan is built no further ahead.
+IN_FLIGHT_PER_WORKER = 2
 
 
 def default_workers() -> int:
@@ -81,15 +89,19 @@ def check_backend(backend: str, address: str | None = None) -> None:
             check_reachable(address)
 
 
-def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,
+def run_batch(specs: Iterable[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,
               on_record: Callable[[dict[str, Any]], None] | None = None, progress: bool = True,
               description: str = "runs", backend: str = "local", address: str | None = None,
-              batch: int = DEFAULT_BATCH) -> list[dict[str, Any]]:
+              batch: int = DEFAULT_BATCH, total: int | None = None) -> list[dict[str, Any]]:
     """Run every spec; returns their records in the order of `specs`.
 
+    specs: a list, or a `Plan` (or any iterable) whose specs are built only as the workers need
+    them: at most a few lock-step groups ahead of the runs (`avsim.experiments.plan`).
+    total: how many specs there are, for the progress bar and the group size (default: a plan's
+    size, a list's length; an estimate is corrected once the specs run out).
     workers: groups at once. local: processes (1 runs in this process); ray: the local cluster's
-    CPUs, or with `address` at most that many tasks in flight (None: as many as the cluster
-    takes). on_record is called in this process as each run finishes (in finishing order),
+    CPUs, or with `address` at most that many tasks in flight (None: twice the cluster's CPUs).
+    on_record is called in this process as each run finishes (in finishing order),
     e.g. to append it to a results file. backend, address: see the module docstring.
     batch: runs each local worker or Ray task steps in lock-step (1: one at a time).
     """
@@ -100,18 +112,23 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
         raise ConfigError(f"the local backend needs workers >= 1, got {workers}")
     if batch < 1:
         raise ConfigError(f"--batch must be >= 1, got {batch}")
-    if not specs:
+    if total is None:
+        total = count_of(specs)
+    remaining = iter(specs)
+    first = next(remaining, None)
+    if first is None:
         return []  # nothing to run: no pool, no cluster
+    counted = Counted(itertools.chain((first,), remaining))
     root_str = str(root) if root is not None else None
-    records: list[dict[str, Any] | None] = [None] * len(specs)
+    # With an address and no --workers the cluster's CPUs decide the runs in flight, so the
+    # groups are `batch` long; otherwise cut so that each of `workers` gets one.
+    groups = lockstep_groups(counted, group_size(total, workers, batch))
     if backend == "ray":
-        # With an address and no --workers the cluster's CPUs decide the runs in flight, so the
-        # groups are `batch` long; otherwise cut as for a local pool of `workers`.
-        groups = lockstep_groups(len(specs), workers or len(specs), batch)
-        results = ray_results(specs, groups, root_str, workers=workers, address=address)
+        results = ray_results(groups, root_str, workers=workers, address=address)
     else:
-        results = _local_results(specs, workers, root_str, batch)
-    bar = tqdm(total=len(specs), desc=description, unit="run", disable=not progress, dynamic_ncols=True)
+        results = _local_results(groups, workers, root_str)
+    bar = tqdm(total=total, desc=description, unit="run", disable=not progress, dynamic_ncols=True)
+    records: dict[int, dict[str, Any]] = {}
     failures = 0
     try:
         for index, record in results:
@@ -119,22 +136,22 @@ def run_batch(specs: Sequence[RunSpec], *, workers: int | None = 1, root: str | 
             if on_record is not None:
                 on_record(record)
             failures += record["status"] == "failed"
+            if counted.exhausted and bar.total != counted.count:  # the plan's size was an estimate
+                bar.total = counted.count
             bar.set_postfix(failed=failures, refresh=False)
             bar.update(1)
     finally:
         results.close()  # an early stop (an error in on_record, Ctrl-C) cancels the runs not yet started
         bar.close()
-    return [r for r in records if r is not None]
+    return [records[index] for index in sorted(records)]
 
 
-def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None, batch: int = 1
-                   ) -> Iterator[tuple[int, dict[str, Any]]]:
-    """(index into specs, record) as each run (or lock-step group of runs) finishes: in this
-    process, or in a pool of spawned processes."""
-    groups = lockstep_groups(len(specs), workers, batch)
+def _local_results(groups: Iterator[Group], workers: int, root: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
+    """(index into the plan, record) as each run (or lock-step group of runs) finishes: in this
+    process, or in a pool of spawned processes fed `IN_FLIGHT_PER_WORKER` groups a worker ahead."""
     if workers <= 1:
         for group in groups:
-            yield from _group_records(group, execute_group([specs[i] for i in group], root))
+            yield from _group_records(group, execute_group(specs_of(group), root))
         return
     context = multiprocessing.get_context("spawn")
     # The workers die with this process (a SIGKILL leaves no orphans) and ignore Ctrl-C, which
@@ -143,9 +160,10 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None, bat
                                initargs=(worker_env(workers), os.getpid()))
     finished = False
     try:
-        futures = {pool.submit(execute_group, [specs[i] for i in group], root): group for group in groups}
-        for future in as_completed(futures):
-            yield from _group_records(futures[future], future.result())
+        for group, future in in_flight(groups, IN_FLIGHT_PER_WORKER * workers,
+                                       lambda group: pool.submit(execute_group, specs_of(group), root),
+                                       _first_done, Future.cancel):
+            yield from _group_records(group, future.result())
         finished = True
     finally:
         if finished:
@@ -154,12 +172,10 @@ def _local_results(specs: Sequence[RunSpec], workers: int, root: str | None, bat
             terminate_workers(pool)
 
 
-def lockstep_groups(count: int, workers: int, batch: int) -> list[list[int]]:
-    """Spec indices cut into consecutive lock-step groups of at most `batch`, and small enough
-    that every worker gets a group (a 10-run batch of 8 on 2 workers is two groups of 5)."""
-    size = max(1, min(batch, -(-count // max(1, workers))))
-    return [list(range(start, min(start + size, count))) for start in range(0, count, size)]
+def _first_done(futures: Collection[Future]) -> Future:
+    done, _ = wait(futures, return_when=FIRST_COMPLETED)
+    return next(iter(done))
 
 
-def _group_records(group: list[int], records: list[dict[str, Any]]) -> Iterator[tuple[int, dict[str, Any]]]:
-    yield from zip(group, records)
+def _group_records(group: Group, records: list[dict[str, Any]]) -> Iterator[tuple[int, dict[str, Any]]]:
+    yield from zip((index for index, _ in group), records)

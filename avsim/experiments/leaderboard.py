@@ -48,7 +48,7 @@ machinery (`resumable`: a pool or Ray, one fsynced line per run, `--resume`), th
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +56,7 @@ from typing import Any
 from avsim.config import SimConfig, with_overrides
 from avsim.config_owners import check_read, check_read_by_some, set_keys
 from avsim.errors import ConfigError
+from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import MAX_RUNS, check_plan_size
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
@@ -169,23 +170,30 @@ class Leaderboard:
     def runs(self, quick: bool = False, first_seed_only: bool = False) -> list[LeaderboardRun]:
         """Every run of the matrix (with `quick`, each place's and scenario's quick_seeds), defence by defence;
         first_seed_only: only each one's seed 0 (the configs to check, not to run)."""
-        runs = []
+        return list(self.iter_runs(quick, first_seed_only))
+
+    def iter_runs(self, quick: bool = False, first_seed_only: bool = False) -> Iterator[LeaderboardRun]:
+        """`runs`, one at a time: each config is built when it is asked for."""
         for defence in self.defences:
             for place in self.places:
                 for name in CONDITIONS:
                     config = self.compose(place_overrides(place), defence.overrides, self.condition(defence, name).overrides)
                     for seed in range(_seed_count(place, quick, first_seed_only)):
-                        runs.append(LeaderboardRun(defence.name, SAFETY, name, place.label, seed,
-                                                   config_at_seed(config, self.vary, seed)))
+                        yield LeaderboardRun(defence.name, SAFETY, name, place.label, seed,
+                                             config_at_seed(config, self.vary, seed))
             for scenario in self.availability:
                 if scenario.defences is not None and defence.name not in scenario.defences:
                     continue
                 config = self.compose({}, defence.overrides, scenario.overrides)
                 where = f"{config.scenario.town} {config.scenario.placement}"
                 for seed in range(_seed_count(scenario, quick, first_seed_only)):
-                    runs.append(LeaderboardRun(defence.name, AVAILABILITY, scenario.name, where, seed,
-                                               config_at_seed(config, self.vary, seed)))
-        return runs
+                    yield LeaderboardRun(defence.name, AVAILABILITY, scenario.name, where, seed,
+                                         config_at_seed(config, self.vary, seed))
+
+    def plan(self, quick: bool = False) -> Plan:
+        """The specs of the board's distinct configs (`unique_specs`), built only as a batch draws on
+        them (`avsim.experiments.plan`); its size counts every run, repeated configs included."""
+        return Plan(self.size(quick), lambda: unique_specs(self, self.iter_runs(quick)))
 
     def compose(self, *layers: Mapping[str, Any]) -> SimConfig:
         """The file's base config with the override `layers` merged over it in order (later wins)."""
@@ -203,13 +211,14 @@ def _seed_count(entry: Place | Availability, quick: bool, first_seed_only: bool 
     return entry.quick_seeds if quick else entry.seeds
 
 
-def unique_specs(leaderboard: Leaderboard, runs: list[LeaderboardRun]) -> list[RunSpec]:
-    """One batch spec per distinct config, labelled by the first run that has it."""
-    specs: dict[str, RunSpec] = {}
+def unique_specs(leaderboard: Leaderboard, runs: Iterable[LeaderboardRun]) -> Iterator[RunSpec]:
+    """One batch spec per distinct config, labelled by the first run that has it, as the runs come."""
+    seen: set[str] = set()
     for run in runs:
         spec = RunSpec(leaderboard.name, run.label, run.seed, run.config)
-        specs.setdefault(spec.spec_hash, spec)
-    return list(specs.values())
+        if spec.spec_hash not in seen:
+            seen.add(spec.spec_hash)
+            yield spec
 
 
 def place_overrides(place: Place) -> dict[str, Any]:

@@ -20,7 +20,7 @@ attack) is one run and counts once. Failed runs count nowhere and are listed.
 from __future__ import annotations
 
 import statistics
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -64,7 +64,7 @@ class Row:
 class Results:
     """The board's runs, each with its record (looked up by config hash)."""
 
-    def __init__(self, runs: Sequence[LeaderboardRun], records: Sequence[Record]) -> None:
+    def __init__(self, runs: Iterable[LeaderboardRun], records: Sequence[Record]) -> None:
         by_hash = {r["spec_hash"]: r for r in records}
         self.pairs = [(run, by_hash.get(config_hash(run.config))) for run in runs]
 
@@ -193,7 +193,7 @@ def availability_table(board: Leaderboard, results: Results) -> list[str]:
     return _table(["defence", "scenario", "phantom brakes", "phantom stops", "largest brake"], body)
 
 
-def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Sequence[LeaderboardRun], records: Sequence[Record],
+def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Iterable[LeaderboardRun], records: Sequence[Record],
                              manifest: dict[str, Any]) -> Path:
     """Write `out_dir/leaderboard.md` and `leaderboard.png`; returns the markdown's path."""
     results = Results(runs, records)

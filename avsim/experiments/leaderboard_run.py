@@ -17,7 +17,7 @@ from pathlib import Path
 from avsim.errors import RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers, software_versions
-from avsim.experiments.leaderboard import Leaderboard, unique_specs
+from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
@@ -46,8 +46,8 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
                             progress: bool, backend: str, address: str | None, batch: int, rrd: str, mcap: str) -> Path:
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-    runs = board.runs(quick)
-    specs = with_recordings(unique_specs(board, runs), out, rrd=rrd, mcap=mcap)
+    # The distinct configs are built as the batch draws on them, never all at once.
+    plan = board.plan(quick).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
                f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
@@ -58,7 +58,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
     out.mkdir(parents=True, exist_ok=True)
     if board.path.resolve() != (out / "leaderboard.toml").resolve():
         shutil.copy2(board.path, out / "leaderboard.toml")
-    records, ran = run_resumable(specs, results_path, existing, resume_command=f"{command} --resume", workers=workers,
+    records, ran = run_resumable(plan, results_path, existing, resume_command=f"{command} --resume", workers=workers,
                                  progress=progress, description="leaderboard", backend=backend, address=address,
                                  batch=batch)
     manifest = {
@@ -70,15 +70,15 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
         "address": address,
         "workers": workers,
         "quick": quick,
-        "runs": len(runs),
-        "configs": len(specs),
+        "runs": plan.size,
+        "configs": len(records),
         "ran": ran,
-        "reused": len(specs) - ran,
+        "reused": len(records) - ran,
         "failed": sum(1 for r in records if r["status"] == "failed"),
         "versions": software_versions(),
     }
     write_json_atomic(out / "manifest.json", manifest)
-    write_leaderboard_report(out, board, runs, records, manifest)
+    write_leaderboard_report(out, board, board.iter_runs(quick), records, manifest)
     if records and manifest["failed"] == len(records):
         first = next(r["error"] for r in records if r["status"] == "failed")
         raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); see {out / 'leaderboard.md'}")

@@ -13,7 +13,8 @@ from avsim.errors import ConfigError
 # About a day of closed-loop runs on a 2-core machine (a few seconds each); above it, a typo
 # in a grid or a seed count is likelier than intent, so the user confirms with --yes.
 RUNS_WITHOUT_YES = 10_000
-# Each run's record and config are held in memory by the batch: a million is a few GB.
+# Each run's record is held in memory until the report (the run specs are not: `avsim.experiments.plan`):
+# a million is a few GB.
 MAX_RUNS = 1_000_000
 
 

@@ -7,7 +7,7 @@
 Why: the local pool stops at one machine's cores; a Ray cluster spreads the same runs over many.
 
 Each task is `avsim.experiments.run_task.execute_group(specs, root)` on one lock-step group (see
-`batch.lockstep_groups`), the function a local pool worker runs, in a Ray worker process: a fresh Python process, so it builds its own MuJoCo model and
+`avsim.experiments.plan.lockstep_groups`), the function a local pool worker runs, in a Ray worker process: a fresh Python process, so it builds its own MuJoCo model and
 EGL context as a spawned pool worker does. A task asks for one CPU (a run is single-threaded,
 see `PerceptionConfig.threads`; a lock-step group shares that thread), so a node runs as many at
 once as it has CPUs. The specs (`RunSpec`, its `SimConfig` a frozen dataclass) are pickled to
@@ -31,15 +31,15 @@ cluster answers; stop it with Ctrl-C.
 from __future__ import annotations
 
 import contextlib
-import itertools
 import os
 import socket
 import subprocess
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from typing import Any
 
 from avsim.errors import ConfigError
+from avsim.experiments.plan import Group, in_flight, specs_of
 from avsim.experiments.run_task import execute_group, failed_record, worker_env
 
 INSTALL_HINT = "pip install 'avsim[ray]'"
@@ -127,38 +127,33 @@ def session(address: str | None, workers: int | None) -> Iterator[Any]:
         ray.shutdown()
 
 
-def ray_results(specs: Sequence[Any], groups: Sequence[Sequence[int]], root: str | None, *, workers: int | None,
+def ray_results(groups: Iterator[Group], root: str | None, *, workers: int | None,
                 address: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
-    """Run `specs` (RunSpecs) as Ray tasks, one a lock-step group; yield (index into specs, record)
-    for each run of a group as the group finishes.
+    """Run lock-step groups (`avsim.experiments.plan.lockstep_groups`: specs, each with its index)
+    as Ray tasks, one a group; yield (index, record) for each run of a group as the group finishes.
 
-    groups: indices into specs, each group one task (`batch.lockstep_groups`).
     workers: the local cluster's CPUs when address is None; with an address, at most that many
-    tasks in flight (None: every task is submitted and the cluster's CPUs decide).
+    tasks in flight (None: twice the cluster's CPUs, so a node never waits for its next task).
+    Groups are drawn from `groups` only as tasks finish, so a large plan is never submitted whole.
     """
     with session(address, workers) as ray:
         task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_group)
-        in_flight = len(groups) if workers is None else workers
-        waiting = iter(groups)
-        pending: dict[Any, Sequence[int]] = {}  # ObjectRef -> the group's indices into specs
-        try:
-            while True:
-                for group in itertools.islice(waiting, max(0, in_flight - len(pending))):
-                    pending[task.remote([specs[i] for i in group], root)] = group
-                if not pending:
-                    return
-                [ref], _ = ray.wait(list(pending), num_returns=1)
-                group = pending.pop(ref)
-                try:
-                    records = ray.get(ref)
-                except ray.exceptions.RayError as exc:  # worker died MAX_RETRIES + 1 times, or task lost
-                    error = f"{type(exc).__name__}: {_first_line(exc)}"
-                    records = [failed_record(specs[i], error) for i in group]
-                yield from zip(group, records)
-        finally:
-            # Stopped early (an error in the caller, Ctrl-C): the cluster need not finish the batch.
-            for ref in pending:
-                ray.cancel(ref)
+        limit = workers if workers is not None else 2 * max(1, int(ray.cluster_resources().get("CPU", 1)))
+
+        def submit(group: Group) -> Any:
+            return task.remote(specs_of(group), root)
+
+        def first_done(refs: Any) -> Any:
+            return ray.wait(list(refs), num_returns=1)[0][0]
+
+        # Stopped early (an error in the caller, Ctrl-C): the cluster need not finish the batch.
+        for group, ref in in_flight(groups, limit, submit, first_done, ray.cancel):
+            try:
+                records = ray.get(ref)
+            except ray.exceptions.RayError as exc:  # worker died MAX_RETRIES + 1 times, or task lost
+                error = f"{type(exc).__name__}: {_first_line(exc)}"
+                records = [failed_record(spec, error) for _, spec in group]
+            yield from zip((index for index, _ in group), records)
 
 
 def _first_line(exc: BaseException) -> str:

@@ -1,9 +1,10 @@
 """Field-by-field checks of a run record read back from a results file (`--resume`).
 
 A record edited by hand, or written by something else, must not be resumed as a finished
-run: a NaN where a distance belongs, a string for a seed, or a null outcome would flow into
-the report as if a run had produced it. The types come from the code that writes records:
-`RunResult`'s annotations for the result, and `RECORD_FIELDS` for the record around it.
+run: a NaN where a distance belongs, a string for a seed, a null outcome or a negative time
+would flow into the report as if a run had produced it. The types come from the code that
+writes records: `RunResult`'s annotations for the result, and `RECORD_FIELDS` for the record
+around it; `RESULT_RANGES` bounds the result's values that no run can put outside them.
 Keys a record lacks are not required here (records written before a field existed resume;
 `results_file` requires the keys every record has had).
 """
@@ -17,12 +18,18 @@ import typing
 from typing import Any
 
 from avsim.metrics import RunResult
+from avsim.validation import Range
 
 # The record's own fields (`avsim.experiments.run_task`) -> the types a value may have.
 RECORD_FIELDS: dict[str, tuple[type, ...]] = {
     "experiment": (str,), "cell": (str,), "seed": (int,), "spec_hash": (str,), "status": (str,),
     "error": (str, type(None)), "result": (dict, type(None)), "trace": (dict, list, type(None)),
     "rrd": (str, type(None)), "wall_s": (float, type(None)), "point": (dict,),
+}
+# Result values no run can give outside these (times, speeds and the brake command of a physical run).
+RESULT_RANGES: dict[str, Range] = {
+    "time_to_stop_s": Range(0, unit="s"), "sim_time_s": Range(0, unit="s"), "peak_speed_mps": Range(0, unit="m/s"),
+    "speed_at_brake_mps": Range(0, unit="m/s"), "max_brake": Range(0, 1),
 }
 
 
@@ -42,6 +49,9 @@ def record_field_problem(record: dict[str, Any]) -> str | None:
         for f in dataclasses.fields(RunResult):
             if f.name in result and not _matches(result[f.name], hints[f.name]):
                 return f"its result.{f.name} is {result[f.name]!r}, not {_annotation_name(hints[f.name])}"
+        for name, limits in RESULT_RANGES.items():
+            if result.get(name) is not None and not limits.contains(result[name]):
+                return f"its result.{name} is {result[name]!r}, not {limits.describe()}"
     return None
 
 

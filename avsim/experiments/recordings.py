@@ -1,6 +1,6 @@
 """Recordings of a batch's runs on request: `--rrd none|failed|all` (and `--mcap`, the same rules).
 
-    specs = with_recordings(specs, out_dir, rrd="failed", mcap="none")
+    specs = with_recordings(specs, out_dir, rrd="failed", mcap="none")    # an iterator: each spec as it is drawn
 
 none    no recordings;
 failed  only the runs whose car failed (`avsim.experiments.failures`: ran the sign, phantom
@@ -20,7 +20,7 @@ as a file name (`slug`); the batch record's `rrd` and `mcap` keys name them, rel
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from avsim.errors import ConfigError
@@ -54,24 +54,24 @@ def slug(name: str) -> str:
     return "_".join("".join(c if c.isalnum() else " " for c in name.lower()).split())
 
 
-def with_recordings(specs: Sequence[RunSpec], out_dir: str | Path, *, rrd: str = DEFAULT_RRD,
-                    mcap: str = DEFAULT_MCAP) -> list[RunSpec]:
-    """`specs` with the recording paths and rule that `rrd` and `mcap` (RECORD_MODES) ask for
-    (checked by `check_modes`, which a command calls before it writes anything)."""
+def with_recordings(specs: Iterable[RunSpec], out_dir: str | Path, *, rrd: str = DEFAULT_RRD,
+                    mcap: str = DEFAULT_MCAP) -> Iterator[RunSpec]:
+    """`specs` with the recording paths and rule that `rrd` and `mcap` (RECORD_MODES) ask for,
+    each as it is drawn (a plan stays lazy: `avsim.experiments.plan.Plan.then`). The modes are
+    checked at the call (`check_modes`, which a command calls before it writes anything)."""
     check_modes(rrd, mcap)
     wanted = {kind: mode for kind, mode in (("rrd", rrd), ("mcap", mcap)) if mode != "none"}
-    if not wanted:
-        return list(specs)
-    out = Path(out_dir)
-    names = [f"{slug(spec.cell)}__seed{spec.seed}" for spec in specs]
+    return _recorded(specs, Path(out_dir), wanted) if wanted else iter(specs)
+
+
+def _recorded(specs: Iterable[RunSpec], out: Path, wanted: dict[str, str]) -> Iterator[RunSpec]:
     seen: dict[tuple[str, str], int] = {}
-    result = []
-    for spec, name in zip(specs, names):
+    for spec in specs:
+        name = f"{slug(spec.cell)}__seed{spec.seed}"
         key = (spec.experiment, name)
         seen[key] = seen.get(key, 0) + 1
         if seen[key] > 1:  # two configs under one label (a leaderboard's): the config hash tells them apart
             name = f"{name}__{spec.spec_hash[:8]}"
         paths = {f"{kind}_path": str(out / KINDS[kind][0] / spec.experiment / f"{name}{KINDS[kind][1]}") for kind in wanted}
         whens = {f"{kind}_when": mode for kind, mode in wanted.items()}
-        result.append(dataclasses.replace(spec, **paths, **whens))
-    return result
+        yield dataclasses.replace(spec, **paths, **whens)

@@ -32,6 +32,7 @@ from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes,
 from avsim.experiments.results_file import JsonlWriter, rewrite
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.output_lock import locked_output
+from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
@@ -64,15 +65,16 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
     experiments = [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
-    runs = sum(len(e.cells) * e.seeds for e in experiments)
+    runs = sum(e.size for e in experiments)
     check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
     return experiments
 
 
-def specs_for(experiments: list[Experiment]) -> list[RunSpec]:
-    """Every (experiment, cell, seed) as a spec."""
-    return [RunSpec(experiment.path.stem, run.cell_name, run.seed, run.config)
-            for experiment in experiments for run in experiment.runs()]
+def specs_for(experiments: list[Experiment]) -> Plan:
+    """Every (experiment, cell, seed) as a spec, built only as a batch draws on it (`avsim.experiments.plan`)."""
+    return Plan(sum(e.size for e in experiments),
+                lambda: (RunSpec(experiment.path.stem, run.cell_name, run.seed, run.config)
+                         for experiment in experiments for run in experiment.iter_runs()))
 
 
 def _fresh_dir(root: Path, stamp: str) -> Path:
@@ -119,7 +121,7 @@ def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, wo
 
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
-    specs = with_recordings(specs_for(experiments), out, rrd=rrd, mcap=mcap)
+    plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     writer = JsonlWriter(out / "runs.jsonl")
     finished = 0
 
@@ -129,7 +131,7 @@ def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, wo
         finished += 1
 
     try:
-        records = run_batch(specs, workers=workers, root=out, on_record=on_record,
+        records = run_batch(plan, workers=workers, root=out, on_record=on_record,
                             progress=progress, description="reproduce", backend=backend, address=address,
                             batch=batch)
     except KeyboardInterrupt:

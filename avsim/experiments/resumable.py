@@ -18,13 +18,14 @@ the finished runs and the command that resumes it.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from avsim.errors import ConfigError, Interrupted, OutputError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import run_batch
+from avsim.experiments.plan import count_of
 from avsim.experiments.results_file import JsonlWriter, read_records, rewrite
 from avsim.experiments.run_task import RunSpec
 
@@ -42,23 +43,35 @@ def existing_records(results_path: Path, resume: bool) -> list[Record]:
     return existing
 
 
-def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequence[Record], *, resume_command: str,
+def run_resumable(specs: Iterable[RunSpec], results_path: Path, existing: Sequence[Record], *, resume_command: str,
                   workers: int | None, progress: bool = True, description: str = "runs", backend: str = "local",
                   address: str | None = None, decorate: Callable[[Record], Record] | None = None,
-                  batch: int = DEFAULT_BATCH) -> tuple[list[Record], int]:
+                  batch: int = DEFAULT_BATCH, total: int | None = None) -> tuple[list[Record], int]:
     """Run the specs that `existing` has no ok record of; returns (one record per spec, in spec
     order; how many were run). The specs' config hashes must differ.
 
+    specs: a list or a `Plan`, built as the batch draws on it: a finished run is skipped as its
+    spec comes, and only the specs' hashes (their order) are kept, not the specs.
+    total: how many specs there are (default: a plan's size, a list's length), for the progress bar.
     decorate: applied to each new record before it is written (e.g. to add a sweep's grid point).
     The other options go to `avsim.experiments.batch.run_batch`; the batch folder is
     `results_path`'s.
     """
-    hashes = [spec.spec_hash for spec in specs]
-    if len(set(hashes)) != len(hashes):
-        raise ValueError("two specs share a config hash; run each config once")
-    wanted = set(hashes)
-    finished = {r["spec_hash"]: r for r in existing if r.get("status") == "ok" and r.get("spec_hash") in wanted}
-    todo = [spec for spec in specs if spec.spec_hash not in finished]
+    finished = {r["spec_hash"]: r for r in existing if r.get("status") == "ok"}
+    if total is None:
+        total = count_of(specs)
+    order: dict[str, None] = {}  # the specs' hashes in spec order, as they are built
+
+    def todo() -> Iterator[RunSpec]:
+        for spec in specs:
+            spec_hash = spec.spec_hash
+            if spec_hash in order:
+                raise ValueError("two specs share a config hash; run each config once")
+            order[spec_hash] = None
+            if spec_hash not in finished:
+                yield spec
+
+    # `run_batch` draws on `todo` until it runs out, so once it returns `order` holds every spec's hash.
     results_path.parent.mkdir(parents=True, exist_ok=True)
     if _torn_tail(results_path):
         rewrite(results_path, existing)  # else the next record would be glued onto the torn line
@@ -77,17 +90,20 @@ def run_resumable(specs: Sequence[RunSpec], results_path: Path, existing: Sequen
             del ran[record["spec_hash"]]
             raise
 
+    # The bar counts the runs to run: every spec but the finished ones (an estimate where the file
+    # holds runs no longer asked for; `run_batch` corrects it once the specs run out).
+    to_run = None if total is None else max(0, total - len(finished))
     try:
-        run_batch(todo, workers=workers, root=results_path.parent, on_record=on_record, progress=progress,
-                  description=description, backend=backend, address=address, batch=batch)
+        run_batch(todo(), workers=workers, root=results_path.parent, on_record=on_record, progress=progress,
+                  description=description, backend=backend, address=address, batch=batch, total=to_run)
     except KeyboardInterrupt:
         raise Interrupted(resume_hint(resume_command, results_path, len(finished) + len(ran))) from None
     except OutputError as exc:  # a full disk: the file holds whole records only, so a resume loses none
         raise OutputError(f"{exc}; {resume_hint(resume_command, results_path, len(finished) + len(ran))}") from None
-    records = [ran.get(h) or finished[h] for h in hashes]
-    others = [r for r in existing if r.get("spec_hash") not in wanted]
+    records = [ran.get(h) or finished[h] for h in order]
+    others = [r for r in existing if r.get("spec_hash") not in order]
     rewrite(results_path, records + others)
-    return records, len(todo)
+    return records, len(ran)
 
 
 def resume_hint(command: str, results_path: Path, finished: int) -> str:

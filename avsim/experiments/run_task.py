@@ -38,6 +38,7 @@ from avsim.experiments.failures import is_failed_run
 from avsim.metrics import StepRecord
 from avsim.lockstep import run_lockstep
 from avsim.runner import RunOutput, run_recorded
+from avsim.termination import raise_if_interrupted
 from avsim.world.scene import resolve_sign_texture
 
 # Trace values are rounded to keep runs.jsonl small; far below anything a figure shows.
@@ -115,6 +116,7 @@ def execute(spec: RunSpec, root: str | None = None) -> dict[str, Any]:
     try:
         output: RunOutput | Exception = run_recorded(spec.config, **recording_of(spec))
     except Exception as exc:  # noqa: BLE001 - recorded as a failed run, counted and reported
+        raise_if_interrupted(exc)  # a Ctrl-C that a C call wrapped stops the batch, as any Ctrl-C does
         output = exc
     return record_of(spec, output, root)
 

@@ -117,9 +117,18 @@ class Experiment:
         names = ", ".join(f'"{c.name}"' for c in self.cells)
         raise ConfigError(f"{self.path}: no cell named \"{name}\"; cells: {names}")
 
+    @property
+    def size(self) -> int:
+        """The number of runs: cells x seeds, counted without building any."""
+        return len(self.cells) * self.seeds
+
     def runs(self) -> list[Run]:
         """Every cell at seeds 0 .. seeds-1, cell by cell."""
-        return [Run(cell.name, seed, self.config_for(cell, seed)) for cell in self.cells for seed in range(self.seeds)]
+        return list(self.iter_runs())
+
+    def iter_runs(self) -> Iterator[Run]:
+        """`runs`, one at a time: each config is built when it is asked for."""
+        return (Run(cell.name, seed, self.config_for(cell, seed)) for cell in self.cells for seed in range(self.seeds))
 
     def config_for(self, cell: Cell, seed: int) -> SimConfig:
         """`cell`'s config for one run: scenario.seed = `seed`, [vary] keys drawn from `seed`."""

@@ -25,6 +25,7 @@ Each error is one `ConfigError` line naming the file, the place in it and the ke
 
 `run_sweep` runs the specs through `avsim.experiments.batch.run_batch`, on its local pool of
 processes or (backend "ray") as Ray tasks on a cluster; the records are the same either way.
+Each run's config is built only when the batch draws on it (`Sweep.plan`, `avsim.experiments.plan`).
 It writes into one folder:
     sweep.toml        the sweep file as it was run
     results.jsonl     one record per run (`avsim.experiments.run_task`), plus `point`: the run's
@@ -65,6 +66,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.plan import Plan
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
@@ -149,7 +151,15 @@ class Sweep:
 
     def specs(self) -> list[RunSpec]:
         """Every run as a batch spec (`spec_of`)."""
-        return [self.spec_of(run) for run in self.iter_runs()]
+        return list(self.iter_specs())
+
+    def iter_specs(self) -> Iterator[RunSpec]:
+        """`specs`, one at a time."""
+        return (self.spec_of(run) for run in self.iter_runs())
+
+    def plan(self) -> Plan:
+        """Every run as a batch spec, built only as a batch draws on it (`avsim.experiments.plan`)."""
+        return Plan(self.size, self.iter_specs)
 
 
 def point_label(point: Mapping[str, Scalar]) -> str:
@@ -283,16 +293,10 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
 
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-
-    # One pass over the runs, each config built once (the plan's size was checked when it was loaded).
-    specs, point_of = [], {}
-    for run in sweep.iter_runs():
-        spec = sweep.spec_of(run)
-        specs.append(spec)
-        point_of[spec.spec_hash] = run.point
-    specs = with_recordings(specs, out, rrd=rrd, mcap=mcap)
-    if len(point_of) != len(specs):
-        raise ConfigError(f"{sweep.path}: two grid points give the same config; remove the repeated values")
+    # The runs are built as the batch draws on them, never all at once (the plan's size and its
+    # points' configs were checked when it was loaded); a record finds its grid point by its cell label.
+    plan = sweep.plan().then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
+    point_of = {point_label(point): point for point in sweep.iter_points()}
 
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
@@ -301,9 +305,9 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
-    records, ran = run_resumable(specs, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out}{recording_flags(rrd, mcap)} --resume",
+    records, ran = run_resumable(plan, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out}{recording_flags(rrd, mcap)} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
-                                 address=address, decorate=lambda record: with_point(record, point_of[record["spec_hash"]]),
+                                 address=address, decorate=lambda record: with_point(record, point_of[record["cell"]]),
                                  batch=batch)
     wall_s = time.perf_counter() - started
     options = [f"--workers {workers}" if workers is not None else "", f"--batch {batch}" if batch != DEFAULT_BATCH else "",
@@ -320,7 +324,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
         "workers": workers,
         "runs": len(records),
         "ran": ran,
-        "reused": len(specs) - ran,
+        "reused": len(records) - ran,
         "failed": sum(1 for r in records if r["status"] == "failed"),
         "grid": {key: list(values) for key, values in sweep.grid},
         "seeds": sweep.seeds,

@@ -237,13 +237,27 @@ def _render_job(args: tuple[SceneJob, str, float]) -> tuple[SceneJob, list[dict]
 
 def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: bool = False) -> Path:
     """Render the dataset into `out_dir`. Same config, same images and labels."""
-    from tqdm import tqdm
-
     out = Path(out_dir)
     if out.exists() and not overwrite:
         raise ConfigError(f"{out} already exists; choose another --out or pass --overwrite")
     partial = out.with_name(out.name + ".partial")
     shutil.rmtree(partial, ignore_errors=True)
+    # A stop before the rename (Ctrl-C, SIGTERM, a worker that died, a full disk) leaves no half-made dataset.
+    try:
+        _render_dataset(partial, config, out)
+        if out.exists():
+            shutil.rmtree(out)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    os.replace(partial, out)
+    return out
+
+
+def _render_dataset(partial: Path, config: DataGenConfig, out: Path) -> None:
+    """Render every image and write the labels and generation.json into `partial` (the labels name `out`)."""
+    from tqdm import tqdm
+
     for split in SPLITS:
         (partial / "images" / split).mkdir(parents=True)
     jobs = _jobs(config)
@@ -276,7 +290,3 @@ def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: b
     write_labels(partial, config.label_format, records, IMAGE_SIZE_PX, out)
     write_text(partial / "generation.json", json.dumps({**asdict(config), "val_layout_seed": VAL_LAYOUT_SEED,
                                                         "val_sun_elevation_deg": VAL_SUN_ELEVATION_DEG}, indent=2), atomic=False)
-    if out.exists():
-        shutil.rmtree(out)
-    os.replace(partial, out)
-    return out

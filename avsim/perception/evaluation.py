@@ -98,6 +98,9 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
 
     data_dir = Path(data_dir)
     records = [_eval_record(line, where, data_dir) for where, line in split_lines(data_dir, split)]
+    if not records:  # a score over no image would be written as if it meant something
+        raise DatasetError(f"{data_dir / split}.jsonl lists no images; evaluate another split (--split) or "
+                           f"dataset (--data), or remake it with `avsim detector make-data --out {data_dir} --overwrite`")
     records = records[:limit] if limit is not None else records
     tallies = {cls: _ClassTally() for cls in SIGN_CLASSES}
     f_px = CameraConfig().f_px

@@ -23,8 +23,10 @@ not the noisy frame the network saw.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import struct
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -55,26 +57,60 @@ def replay(bag: str | os.PathLike, perception_overrides: Mapping[str, Any] | Non
     path = Path(bag)
     if not path.exists():
         raise BagError(f"bag {path} does not exist; pass an .mcap file or a ROS bag folder")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise BagError(f"{path} is a folder without a metadata.yaml, so no ROS bag; pass an .mcap file or a ROS bag folder")
+    # rosbags' readers raise more than AnyReaderError on a cut or foreign file (its MCAP reader
+    # reads past the end of a truncated one): only the bag's own reading is guarded by these.
+    unreadable = (AnyReaderError, EOFError, IndexError, KeyError, TypeError, ValueError, struct.error)
+    reader = AnyReader([path], default_typestore=ros_types.typestore())
+    with _reading(path, unreadable):
+        reader.open()
     try:
-        with AnyReader([path], default_typestore=ros_types.typestore()) as reader:
-            images = [c for c in reader.connections if c.msgtype == IMAGE_TYPE]
-            if not images:
-                topics = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
-                raise BagError(f"bag {path} has no {IMAGE_TYPE} topic to replay (its topics: {topics})")
-            config = _run_config(reader, perception_overrides or {})
-            # A key the user set that this perception does not read on a bag's images is refused
-            # before the first image (the bag's run decides the kind when the user names none).
-            check_read_on_images(config.perception, perception_overrides or {}, "avsim replay", REPLAY_UNREAD)
-            from avsim.perception.factory import build_frame_detector
-            from avsim.sensors.regions import regions_px
+        images = [c for c in reader.connections if c.msgtype == IMAGE_TYPE]
+        if not images:
+            topics = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
+            raise BagError(f"bag {path} has no {IMAGE_TYPE} topic to replay (its topics: {topics})")
+        runs = [c for c in reader.connections if c.topic == RUN_TOPIC]
+        config = _run_config(_messages(reader, runs, path, unreadable), perception_overrides or {})
+        # A key the user set that this perception does not read on a bag's images is refused
+        # before the first image (the bag's run decides the kind when the user names none).
+        check_read_on_images(config.perception, perception_overrides or {}, "avsim replay", REPLAY_UNREAD)
+        from avsim.perception.factory import build_frame_detector
+        from avsim.sensors.regions import regions_px
 
-            detector = build_frame_detector(config.perception)
-            regions = regions_px(config.perception, config.camera)
-            for connection, _, raw in reader.messages(connections=images):
-                message = reader.deserialize(raw, connection.msgtype)
-                yield _record(connection.topic, message, config.perception, regions, detector)
-    except AnyReaderError as exc:  # also a truncated or foreign file
-        raise BagError(f"cannot read bag {path}: {exc}; pass an .mcap file or a ROS bag folder") from None
+        detector = build_frame_detector(config.perception)
+        regions = regions_px(config.perception, config.camera)
+        for topic, message in _messages(reader, images, path, unreadable):
+            yield _record(topic, message, config.perception, regions, detector)
+    finally:
+        reader.close()
+
+
+@contextlib.contextmanager
+def _reading(path: Path, unreadable: tuple[type[BaseException], ...]) -> Iterator[None]:
+    """Turn what a bag reader raises on a truncated or foreign file into one BagError line."""
+    try:
+        yield
+    except unreadable as exc:
+        raise BagError(f"cannot read bag {path}: {type(exc).__name__}: {exc}; it is cut short or no bag: pass an "
+                       ".mcap file or a ROS bag folder") from None
+
+
+def _messages(reader: Any, connections: list[Any], path: Path, unreadable: tuple[type[BaseException], ...]
+              ) -> Iterator[tuple[str, Any]]:
+    """(topic, deserialized message) of `connections`, in the bag's order, each read inside `_reading`;
+    none when `connections` is empty."""
+    if not connections:
+        return  # rosbags reads every message of the bag when given no connections (someone else's bag has no run)
+    messages = reader.messages(connections=connections)
+    while True:
+        with _reading(path, unreadable):
+            try:
+                connection, _, raw = next(messages)
+            except StopIteration:
+                return
+            message = reader.deserialize(raw, connection.msgtype)
+        yield connection.topic, message
 
 
 def camera_of(topic: str) -> str:
@@ -91,14 +127,12 @@ def detection_json(detection: Detection) -> dict[str, Any]:
             **({"source": detection.source} if detection.source else {})}
 
 
-def _run_config(reader: Any, overrides: Mapping[str, Any]) -> SimConfig:
-    """The bag's own run's camera and perception settings (avsim's defaults without one), `overrides`
-    on the perception's."""
+def _run_config(run_messages: Iterator[tuple[str, Any]], overrides: Mapping[str, Any]) -> SimConfig:
+    """The bag's own run's camera and perception settings (avsim's defaults without one: no
+    `RUN_TOPIC` message), `overrides` on the perception's."""
     base = SimConfig()
-    runs = [c for c in reader.connections if c.topic == RUN_TOPIC]
-    # An empty connection list would read every message of the bag: someone else's has no run.
-    for _, _, raw in reader.messages(connections=runs) if runs else ():
-        recorded = json.loads(reader.deserialize(raw, runs[0].msgtype).data)["config"]
+    for _, message in run_messages:
+        recorded = json.loads(message.data)["config"]
         base = with_overrides(base, {"camera": recorded["camera"], "perception": recorded["perception"]})
     return with_overrides(base, {"perception": dict(overrides)})
 

@@ -36,7 +36,8 @@ import cv2
 import numpy as np
 
 from avsim.control.policies import STOP_CLASS
-from avsim.errors import AvsimError, ConfigError
+from avsim.errors import AvsimError, ConfigError, OutputError
+from avsim.image_files import c_stderr_silenced
 from avsim.metrics import StepRecord
 from avsim.outputs import temporary_path
 from avsim.perception.base import Detection
@@ -103,6 +104,16 @@ def _draw_panel(bgr: np.ndarray, time_s: float, speed_kmh: float, brake: float) 
         cv2.rectangle(bgr, (bar_x0, bar_y - 10), (filled_x, bar_y), _BRAKE_BAR_BGR, cv2.FILLED)
 
 
+def _frames_in(path: Path) -> int:
+    """The frames an MP4 file holds, as its index counts them (0 when it cannot be opened)."""
+    with c_stderr_silenced():  # FFmpeg's own "moov atom not found" on a cut file
+        capture = cv2.VideoCapture(str(path))
+    try:
+        return int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
+    finally:
+        capture.release()
+
+
 class VideoRecorder(StepRecorder):
     """Writes the front camera of one `ClosedLoop` run to `path` (.mp4); attach before the first step."""
 
@@ -146,6 +157,12 @@ class VideoRecorder(StepRecorder):
         self._writer.release()
         if not self._tmp_path.is_file() or self._tmp_path.stat().st_size == 0:
             raise AvsimError(f"cannot write {self._path}: the '{FOURCC}' encoder produced no data")
+        # OpenCV's writer reports no failed write (a full disk, a file-size limit): it logs a warning
+        # and goes on, leaving a cut file. So the file is read back: every frame must be in it.
+        readable = _frames_in(self._tmp_path)
+        if readable != self.frames_written:
+            raise OutputError(f"cannot write {self._path}: {readable} of its {self.frames_written} frames reached the "
+                              "file (a full disk or a file-size limit?)")
         os.replace(self._tmp_path, self._path)
 
     def _discard(self) -> None:

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from avsim.errors import RenderError
+from avsim.termination import raise_if_interrupted
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 
@@ -31,6 +32,7 @@ class OffscreenRenderer:
             self._gl.make_current()
             self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         except Exception as exc:  # the GL backends raise several unrelated types
+            raise_if_interrupted(exc)  # a Ctrl-C inside EGL's ctypes calls is no broken EGL
             backend = os.environ.get("MUJOCO_GL", "egl")
             detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise RenderError(

@@ -17,9 +17,11 @@ from typing import Callable
 import cv2
 import numpy as np
 
+from avsim.boundary import run_guarded
 from avsim.errors import TextureError
 from avsim.image_files import c_stderr_silenced
 from avsim.outputs import write_bytes_atomic
+from avsim.validation import OneLineArgumentParser
 
 TEXTURE_DIR = Path(__file__).resolve().parents[2] / "textures"
 
@@ -300,6 +302,13 @@ def write_clean_textures(out_dir: Path = TEXTURE_DIR) -> list[Path]:
     return paths
 
 
+def main(argv: list[str] | None = None) -> int:
+    """`python -m avsim.world.textures`: draw the clean sign faces into textures/; returns the exit status.
+    It takes no arguments, so a mistyped one is refused before any file is written."""
+    prog = "python -m avsim.world.textures"
+    OneLineArgumentParser(prog=prog, description=f"Draw the clean sign faces into {TEXTURE_DIR}.").parse_args(argv)
+    return run_guarded(lambda: print("\n".join(str(path) for path in write_clean_textures())), prog=prog)
+
+
 if __name__ == "__main__":
-    for written in write_clean_textures():
-        print(written)
+    raise SystemExit(main())

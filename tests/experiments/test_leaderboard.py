@@ -89,9 +89,9 @@ def test_the_quick_subset_is_part_of_the_full_board_so_a_resume_reuses_it():
 def test_a_placeholder_adaptive_attack_runs_once(tmp_path):
     board = load_leaderboard(write(tmp_path, TINY))
     runs = [r for r in board.runs() if r.defence == "baseline" and r.kind == SAFETY]
-    assert len(unique_specs(board, runs)) == len(runs) * 2 // 3  # its adaptive texture is the strongest one
+    assert len(list(unique_specs(board, runs))) == len(runs) * 2 // 3  # its adaptive texture is the strongest one
     runs = [r for r in board.runs() if r.defence == "map_prior" and r.kind == SAFETY]
-    assert len(unique_specs(board, runs)) == len(runs)  # its adaptive condition differs
+    assert len(list(unique_specs(board, runs))) == len(runs)  # its adaptive condition differs
 
 
 def test_every_shipped_defence_faces_an_adaptive_attack_of_its_own():
@@ -100,7 +100,7 @@ def test_every_shipped_defence_faces_an_adaptive_attack_of_its_own():
     for defence in board.defences:
         assert defence.adaptive.overrides != strongest, defence.name
         runs = [r for r in board.runs() if r.defence == defence.name and r.kind == SAFETY]
-        assert len(unique_specs(board, runs)) == len(runs), defence.name
+        assert len(list(unique_specs(board, runs))) == len(runs), defence.name
 
 
 # ---- the format's checks -------------------------------------------------------------------------

@@ -81,7 +81,7 @@ def test_a_run_recorded_afterwards_gives_the_same_result_record(batch, tmp_path,
 
 def test_rrd_all_and_none(tmp_path):
     spec = RunSpec("e", "a cell, b", 3, SimConfig())
-    assert with_recordings([spec], tmp_path, rrd="none") == [spec]
+    assert list(with_recordings([spec], tmp_path, rrd="none")) == [spec]
     (recorded,) = with_recordings([spec], tmp_path, rrd="all", mcap="all")
     assert (recorded.rrd_when, recorded.mcap_when) == ("all", "all")
     assert recorded.rrd_path == str(tmp_path / "rrd" / "e" / "a_cell_b__seed3.rrd")

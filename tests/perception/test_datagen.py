@@ -59,3 +59,21 @@ def test_existing_output_is_refused_and_nothing_partial_is_left(tiny_dataset):
 def test_bad_counts_are_config_errors():
     with pytest.raises(ConfigError):
         DataGenConfig(n_train=0, n_val=0)
+
+
+def test_a_stop_mid_render_leaves_no_half_made_dataset(tmp_path, monkeypatch):
+    """Ctrl-C or SIGTERM (the boundary's exception) after the first scene: no OUT, no OUT.partial."""
+    from avsim.perception import datagen
+
+    rendered = []
+
+    def first_scene_then_stop(args):
+        if rendered:
+            raise KeyboardInterrupt
+        rendered.append(args)
+        return args[0], []  # a scene's records: none needed to reach the stop
+
+    monkeypatch.setattr(datagen, "_render_job", first_scene_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        make_dataset(tmp_path / "signs", TINY)
+    assert rendered and list(tmp_path.iterdir()) == []

@@ -99,3 +99,24 @@ def test_annotate_frame_draws_the_box_label_and_panel():
     assert (bgr[185:199, 300:340] != 128).any()  # the label above the box
     assert bgr[5:60, 5:180].mean() < 128  # the darkened speed/brake panel
     assert (rgb == 128).all()  # the input is not drawn on
+
+
+def test_an_mp4_that_a_full_disk_cut_is_refused_in_one_line_and_not_kept(tmp_path):
+    """OpenCV's writer reports no failed write; the recorder reads the file back. A file-size limit
+    (RLIMIT_FSIZE, which Python meets as EFBIG: it ignores SIGXFSZ) stands in for a full disk."""
+    import resource
+
+    from avsim.errors import OutputError
+
+    loop = ClosedLoop(make_config(scenario={"start_dist_m": 35.0, "start_speed_kmh": 40.0}))
+    limits = resource.getrlimit(resource.RLIMIT_FSIZE)
+    try:
+        with pytest.raises(OutputError, match=r"cannot write .*run\.mp4: \d+ of its 4 frames reached the file"):
+            with VideoRecorder(loop, tmp_path / "run.mp4") as video:
+                resource.setrlimit(resource.RLIMIT_FSIZE, (8_000, limits[1]))
+                for _ in range(3):
+                    video.on_step(loop, loop.step())
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, limits)
+        loop.close()
+    assert list(tmp_path.iterdir()) == []

@@ -19,6 +19,7 @@ from typing import Any
 from avsim.experiments.attacks.success import Success, success
 from avsim.config import with_overrides
 from avsim.experiments.batch import run_batch
+from avsim.experiments.plan import Plan
 from avsim.experiments.recordings import with_recordings
 from avsim.experiments.results_file import JsonlWriter
 from avsim.experiments.run_task import RunSpec
@@ -34,18 +35,17 @@ def load_protocol(path: str | Path) -> Experiment:
     return experiment
 
 
-def protocol_specs(protocol: Experiment, signs: Mapping[str, str]) -> list[RunSpec]:
-    """One RunSpec per (label, sign) and seed: the clean cell with `scenario.sign` = sign.
+def protocol_specs(protocol: Experiment, signs: Mapping[str, str]) -> Plan:
+    """One RunSpec per (label, sign) and seed: the clean cell with `scenario.sign` = sign, each
+    built only as a batch draws on it (`avsim.experiments.plan`).
 
     signs: label -> a --sign value (a texture name or a PNG path), in the order to run them.
     """
     clean = protocol.cell(CLEAN_CELL)
-    specs = []
-    for label, sign in signs.items():
-        config = with_overrides(clean.config, {"scenario": {"sign": sign}})
-        specs += [RunSpec("attack_sweep", label, seed, protocol.config_for(Cell(label, config), seed))
-                  for seed in range(protocol.seeds)]
-    return specs
+    cells = [Cell(label, with_overrides(clean.config, {"scenario": {"sign": sign}})) for label, sign in signs.items()]
+    return Plan(len(cells) * protocol.seeds,
+                lambda: (RunSpec("attack_sweep", cell.name, seed, protocol.config_for(cell, seed))
+                         for cell in cells for seed in range(protocol.seeds)))
 
 
 def closed_loop_success(protocol: Experiment, signs: Mapping[str, str], runs_jsonl: Path,
@@ -58,10 +58,11 @@ def closed_loop_success(protocol: Experiment, signs: Mapping[str, str], runs_jso
     happened to finish would not be the rate.
     """
     all_signs = {CLEAN_CELL: "clean", **{label: sign for label, sign in signs.items() if label != CLEAN_CELL}}
-    specs = with_recordings(protocol_specs(protocol, all_signs), runs_jsonl.parent, rrd=rrd, mcap=mcap)
+    plan = protocol_specs(protocol, all_signs).then(
+        lambda specs: with_recordings(specs, runs_jsonl.parent, rrd=rrd, mcap=mcap))
     runs_jsonl.unlink(missing_ok=True)  # this sweep's runs only, never appended to an earlier sweep's
     writer = JsonlWriter(runs_jsonl)
-    records = run_batch(specs, workers=workers, on_record=writer.append, progress=progress,
+    records = run_batch(plan, workers=workers, on_record=writer.append, progress=progress,
                         description="closed-loop runs", root=runs_jsonl.parent)
     failed = [f"{r['cell']} seed {r['seed']}: {r['error']}" for r in records if r["status"] != "ok"]
     if failed:

@@ -13,8 +13,9 @@ PROTOCOL = Path(__file__).resolve().parents[3] / "experiments" / "attacks" / "su
 
 def test_a_textures_runs_differ_from_the_clean_ones_only_in_the_sign():
     protocol = budget_success.load_protocol(PROTOCOL)
-    specs = budget_success.protocol_specs(protocol, {"clean": "clean", "ssim_floor=0.7": "driveby_detector"})
-    assert len(specs) == 2 * protocol.seeds
+    plan = budget_success.protocol_specs(protocol, {"clean": "clean", "ssim_floor=0.7": "driveby_detector"})
+    specs = list(plan)
+    assert len(specs) == plan.size == 2 * protocol.seeds
     clean = {s.seed: s.config.to_dict() for s in specs if s.cell == "clean"}
     attacked = {s.seed: s.config.to_dict() for s in specs if s.cell == "ssim_floor=0.7"}
     assert sorted(clean) == sorted(attacked) == list(range(protocol.seeds))
