@@ -41,7 +41,7 @@ What a run draws decides which of the other `scenario`, `vehicle` and `camera` k
 (the autopilot uses none, so its perception never runs) and a recorder draws the front camera
 and the policy's; colour images only for a pixel perception or a recorder, segmentation only for
 the oracle. So the side camera's keys are read only where the policy uses it, the sun, fog,
-surfaces and photographic stages only where colour is drawn, `camera.seg_supersample` only by the
+surfaces, photographic stages and a sign texture (not `scenario.sign = none`) only where colour is drawn, `camera.seg_supersample` only by the
 oracle, `scenario.fog_start_m` only in fog, `scenario.seed` only with a start jitter or sensor
 noise, and `vehicle.abs_target_slip` only with anti-lock brakes or traction control on. An experiment, sweep or leaderboard file's runs may be recorded
 (a batch's `--rrd failed` is the default), so there a recorder is assumed; `avsim run` knows.
