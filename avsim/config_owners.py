@@ -28,6 +28,12 @@ which runs must read it:
   the cameras' keys and its perception's, and no policy, loop or vehicle key
   (`check_snapshot_reads`).
 
+A policy reads its keys only where it gets detections (a perception other than none through its
+camera), but for its `blind_keys`, which act without one: the map-reading autopilot's, which never
+gets a detection, and `map_prior`'s map stop; so `policy.baseline_brake` under perception none, and
+`policy.conf_threshold` (read by every run that gets detections, `DETECTING_RUN_READS`) under the
+autopilot, are refused.
+
 The map's keys (`MAP_KEYS`: `scenario.map_error`, `scenario.map_stop_line_offset_m`) change only
 the HD map, which only the policies that declare `uses_map` read: they are owned by those policies.
 What a run draws decides which of the other `scenario`, `vehicle` and `camera` keys it reads
@@ -35,7 +41,7 @@ What a run draws decides which of the other `scenario`, `vehicle` and `camera` k
 (the autopilot uses none, so its perception never runs) and a recorder draws the front camera
 and the policy's; colour images only for a pixel perception or a recorder, segmentation only for
 the oracle. So the side camera's keys are read only where the policy uses it, the sun, fog,
-surfaces and photographic stages only where colour is drawn, `camera.seg_supersample` only by the
+surfaces, photographic stages and a sign texture (not `scenario.sign = none`) only where colour is drawn, `camera.seg_supersample` only by the
 oracle, `scenario.fog_start_m` only in fog, `scenario.seed` only with a start jitter or sensor
 noise, and `vehicle.abs_target_slip` only with anti-lock brakes or traction control on. An experiment, sweep or leaderboard file's runs may be recorded
 (a batch's `--rrd failed` is the default), so there a recorder is assumed; `avsim run` knows.
@@ -58,23 +64,30 @@ from avsim.perception.factory import CONDITIONAL_KEYS, NETWORK_KEYS, PERCEPTION_
 OWNED_SECTIONS = ("policy", "perception")
 # Scenario keys that change only the HD map (`avsim.world.hd_map`), read by map-reading policies alone.
 MAP_KEYS = ("scenario.map_error", "scenario.map_stop_line_offset_m")
-# Keys every run reads, whatever its policy and perception, and why: the two that choose them, and
-# the threshold by which the result record counts a confident stop-sign detection
-# (`first_detection_dist_m`, the trace's `top_stop_conf`, the video's boxes; `avsim.loop`).
+# Keys every run reads, whatever its policy and perception, and why: the two that choose them.
 EVERY_RUN_READS = {
     "policy.name": "it names the braking policy",
     "perception.kind": "it names the perception",
+}
+# Keys every run that gets detections reads (a perception other than none, through a policy's
+# camera), whatever its policy, and why: the threshold by which the result record counts a confident
+# stop-sign detection (`first_detection_dist_m`, the trace's `top_stop_conf`, the video's boxes;
+# `avsim.loop`). A run with no detection (the autopilot, or perception none) has none to count.
+DETECTING_RUN_READS = {
     "policy.conf_threshold": "the result record's confident detection: first_detection_dist_m, the trace, the video",
 }
 # A pixel perception's region of interest in each camera, read only where it sees through that camera.
 REGION_KEYS = {"front": "perception.front_roi_px", "side": "perception.side_roi_px"}
 
 
-def policy_reads(name: str) -> frozenset[str]:
+def policy_reads(name: str, *, detects: bool = True) -> frozenset[str]:
     """The dotted `policy.*` keys the policy registered as `name` reads (with the every-run ones), and
-    the map's keys when it reads the map."""
+    the map's keys when it reads the map; detects: whether it gets detections (a perception other
+    than none through its camera): without, only its `blind_keys` and no `DETECTING_RUN_READS`."""
     policy = POLICIES.get(name)
-    keys = frozenset(f"policy.{key}" for key in policy.config_keys) | _every_run("policy")
+    own = policy.config_keys if detects else policy.blind_keys
+    keys = frozenset(f"policy.{key}" for key in own) | _every_run("policy")
+    keys |= frozenset(DETECTING_RUN_READS) if detects else frozenset()
     return keys | frozenset(MAP_KEYS) if policy.uses_map else keys
 
 
@@ -98,7 +111,8 @@ def keys_read(config: SimConfig, *, recorded: bool = True, cameras: tuple[str, .
     through (None: its policy's)."""
     sight = Sight.of(config, recorded=recorded, cameras=cameras)
     conditional = frozenset(key for key, condition in RUN_CONDITIONS.items() if condition.holds(config, sight))
-    return policy_reads(config.policy.name) | _perception_seen(config.perception, sight) | conditional
+    policy = policy_reads(config.policy.name, detects=sight.perceives)
+    return policy | _perception_seen(config.perception, sight) | conditional
 
 
 def _every_run(section: str) -> frozenset[str]:
@@ -133,6 +147,9 @@ def readers(dotted: str) -> str:
         policies = f"polic{'ies' if len(names) > 1 else 'y'} {', '.join(names)}" if names else "no policy"
         if dotted in EVERY_RUN_READS:
             return f"every run ({EVERY_RUN_READS[dotted]})" + (f"; and {policies} brake by it" if names else "")
+        if dotted in DETECTING_RUN_READS:
+            return (f"every run that gets detections, from a perception other than none through its policy's camera "
+                    f"({DETECTING_RUN_READS[dotted]})" + (f"; and {policies} brake by it" if names else ""))
         return policies
     if dotted in EVERY_RUN_READS:
         return f"every run ({EVERY_RUN_READS[dotted]})"
@@ -178,6 +195,10 @@ def _this_run(config: SimConfig, dotted: str, sight: Sight) -> str:
     section, key = dotted.split(".", 1)
     if dotted in RUN_CONDITIONS:
         return RUN_CONDITIONS[dotted].unmet(config, sight)
+    if section == "policy" and not sight.perceives and dotted in policy_reads(config.policy.name):
+        if not sight.cameras:
+            return f"policy is {sight.policy}, which uses no camera, so it gets no detection"
+        return f"perception is {sight.kind}, so policy {sight.policy} gets no detection"
     if section == "policy" or dotted in MAP_KEYS:
         return f"policy is {config.policy.name}"
     camera = _unseen_camera(config, dotted, sight)
@@ -219,6 +240,8 @@ def _fix(config: SimConfig, dotted: str, sight: Sight) -> str:
     section, key = dotted.split(".", 1)
     if dotted in RUN_CONDITIONS:
         return RUN_CONDITIONS[dotted].fix
+    if section == "policy" and not sight.perceives and dotted in policy_reads(config.policy.name):
+        return "choose a perception other than none" if sight.cameras else "choose a policy that uses a camera"
     camera = _unseen_camera(config, dotted, sight)
     if camera is not None:
         return f"choose a policy that uses the {camera} camera" if camera else "choose a policy that uses a camera"

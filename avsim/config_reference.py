@@ -25,7 +25,7 @@ from typing import Any
 from avsim import config as config_module
 from avsim.boundary import run_guarded
 from avsim.config import CameraConfig, SimConfig, type_name
-from avsim.config_owners import DETECT_UNREAD, EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, SNAPSHOT_UNREAD, readers
+from avsim.config_owners import DETECT_UNREAD, DETECTING_RUN_READS, EVERY_RUN_READS, MAP_KEYS, OWNED_SECTIONS, SNAPSHOT_UNREAD, readers
 from avsim.config_sight import RUN_CONDITIONS
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
@@ -165,6 +165,12 @@ def generate() -> str:
         "reads it. A sweep whose grid points differ only in keys their runs do not read would run one run twice",
         "under two labels, and is refused: give that policy its own sweep file. Keys every run reads, whatever",
         "its policy and perception: " + "; ".join(f"`{key}` ({why})" for key, why in EVERY_RUN_READS.items()) + ".",
+        "Keys every run that gets detections reads (a perception other than none, through its policy's camera): "
+        + "; ".join(f"`{key}` ({why})" for key, why in DETECTING_RUN_READS.items()) + ". A policy reads its other keys",
+        "only where it gets detections, but for those that act without one (" + "; ".join(
+            f"{name}: " + ", ".join(f"`policy.{key}`" for key in POLICIES.get(name).blind_keys)
+            for name in POLICIES.names() if POLICIES.get(name).blind_keys) + "): perception none",
+        "(or the autopilot, which uses no camera) gives a policy no detection.",
         "`avsim detect` and `avsim replay` run a perception on images without a simulation: they refuse every",
         "key but their perception's, and of those the simulated camera's (" + ", ".join(f"`{key}`" for key in DETECT_UNREAD)
         + "; a bag's frames keep their regions). `avsim snapshot` places the car at rest and draws both cameras in",

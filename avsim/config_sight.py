@@ -8,6 +8,9 @@ for a pixel perception, as segmentation for the oracle, not at all for `none`; a
 changes a picture no one draws changes nothing: nothing touches the car but its four tyre-road
 contact pairs (`avsim.vehicle.assembly`), so scenery, signs, light and fog never reach the physics.
 
+`scenario.sign` is read by every run when it is `none` (no stop sign), but a texture only where
+colour is drawn (the texture is the one thing it changes).
+
 Some keys are read only under a value of another: `scenario.fog_start_m` only in fog
 (`fog_end_m` > 0), `scenario.seed` only where it seeds something (a start jitter, or a pixel
 perception's sensor noise), `vehicle.abs_target_slip` only with the anti-lock brakes or the
@@ -22,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from avsim.config import SimConfig
+from avsim.config import NO_SIGN, SimConfig
 from avsim.control.policies import POLICIES
 from avsim.perception.factory import FRAME_DETECTORS
 
@@ -141,6 +144,12 @@ SEEDED = Condition(
     "the start jitter (scenario.start_jitter_m > 0) and a pixel perception's sensor noise (perception.sensor_noise_std > 0)",
     lambda config, sight: "scenario.start_jitter_m is 0 and it draws no sensor noise",
     "set scenario.start_jitter_m or a pixel perception's perception.sensor_noise_std above 0")
+SIGN_TEXTURE = Condition(
+    lambda config, sight: sight.colour or config.scenario.sign == NO_SIGN,
+    f"every run for {NO_SIGN} (no stop sign: segmentation and the map see that); a texture, which changes only the "
+    f"sign's colour pixels, only a run that draws colour images: a pixel perception ({_PIXEL_PERCEPTIONS}) through "
+    f"its policy's camera, or {RECORDERS}",
+    _colour_unmet, "choose a pixel perception and a policy that uses a camera, or record the run")
 SLIP_CONTROL = Condition(
     lambda config, sight: config.vehicle.abs_enabled or config.vehicle.traction_control_enabled,
     "the anti-lock brakes (vehicle.abs_enabled) and the traction control (vehicle.traction_control_enabled)",
@@ -156,6 +165,10 @@ RUN_CONDITIONS: dict[str, Condition] = {
     **dict.fromkeys(("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                      "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials"), COLOUR),
     "scenario.fog_start_m": FOG_START,
+    # A texture over another (alpha dropped, the same square face) changes only colour pixels; over
+    # `none` it puts a stop sign where there was none, read by every run: `avsim run --config`
+    # leaves scenario.sign out of its check where the cell has none (`avsim.cli.run`).
+    "scenario.sign": SIGN_TEXTURE,
     "scenario.seed": SEEDED,
     "camera.seg_supersample": SEGMENTATION,
     "camera.side_fovy_deg": SIDE_CAMERA,

@@ -110,16 +110,52 @@ def test_every_key_has_an_owner():
 
 # ---- refusals, for every policy and perception kind ---------------------------------------
 
+@pytest.mark.parametrize("kind", ["detector", "none"])
 @pytest.mark.parametrize("name", POLICIES.names())
-def test_a_policy_key_is_refused_exactly_where_the_policy_does_not_read_it(name):
-    config = SimConfig(policy=PolicyConfig(name=name))
-    declared = set(POLICIES.get(name).config_keys) | {"conf_threshold"}
+def test_a_policy_key_is_refused_exactly_where_the_policy_does_not_read_it(name, kind):
+    # A policy that gets no detection (perception none, or the autopilot's no camera) reads only its blind keys.
+    policy = POLICIES.get(name)
+    config = SimConfig(policy=PolicyConfig(name=name), perception=KIND_CONFIGS[kind])
+    detects = bool(policy.cameras) and kind != "none"
+    declared = set(policy.config_keys) | {"conf_threshold"} if detects else set(policy.blind_keys)
     for key in POLICY_KEYS:
         if key in declared:
             check_read(config, {f"policy.{key}"})
+        elif key in policy.config_keys or key == "conf_threshold":
+            with pytest.raises(ConfigError, match=rf"^policy\.{key} is read only by .* this run's .*gets no detection, so it "
+                                                  r"would be ignored; remove it, or choose a (perception other than none|policy "
+                                                  r"that uses a camera)$"):
+                check_read(config, {f"policy.{key}"})
         else:
             with pytest.raises(ConfigError, match=rf"^policy\.{key} is read only by polic.* this run's policy is {name}, "):
                 check_read(config, {f"policy.{key}"})
+
+
+def _blind_decisions(name: str, config: PolicyConfig) -> list:
+    """The decisions of policy `name` over a drive at 20 m/s that gets no detection (as perception none gives)."""
+    from avsim.world.hd_map import HdMap, MapHandle
+
+    factory_ = POLICIES.get(name)
+    extra = {"map_handle": MapHandle(HdMap((0.0,)), BUMPER)} if factory_.uses_map else {}
+    policy = factory_(config, CTX, **extra)
+    return [policy.decide(obs(speed=20.0, stop_line=40.0 - step, t=step * 0.05)) for step in range(30)]
+
+
+# A valid value other than the default of every policy key (vote_k within the default vote_n).
+OTHER_VALUES = {"conf_threshold": 0.2, "trigger_dist_m": 90.0, "sign_height_m": 0.9, "stop_line_before_sign_m": 3.0,
+                "baseline_brake": 0.3, "stop_margin_m": 4.0, "a_max_mps2": 5.0, "brake_multiplier": 0.7,
+                "autopilot_stop_margin_m": 6.0, "autopilot_decel_fraction": 0.3, "vote_conf_threshold": 0.1, "vote_k": 1,
+                "vote_n": 9, "vote_range_rate_tol": 0.05, "vote_min_travel_m": 0.1, "study_sign_height_m": 0.5}
+
+
+@pytest.mark.parametrize("name", POLICIES.names())
+def test_a_policy_key_refused_without_detections_changes_no_decision_and_a_blind_key_does(name):
+    assert sorted(OTHER_VALUES) == POLICY_KEYS
+    policy = POLICIES.get(name)
+    base = _blind_decisions(name, PolicyConfig(name=name))
+    for key in POLICY_KEYS:
+        changed = _blind_decisions(name, PolicyConfig(name=name, **{key: OTHER_VALUES[key]}))
+        assert (changed != base) == (key in policy.blind_keys), key
 
 
 @pytest.mark.parametrize("kind", PERCEPTIONS.names())

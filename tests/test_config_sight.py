@@ -29,14 +29,14 @@ COLOUR_KEYS = ("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpe
                "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials")
 SIDE_KEYS = ("camera.side_fovy_deg", "camera.side_yaw_deg")
 # Keys every run reads, whatever it draws (a sample of each section).
-ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign", "scenario.sign_yaw_deg", "scenario.speed_kmh",
+ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scenario.speed_kmh",
           "scenario.start_dist_m", "scenario.road_friction", "vehicle.abs_enabled", "vehicle.brake_rise_time_s",
           "loop.physics_dt_s", "loop.max_time_s")
 
 
 def test_every_conditional_key_is_in_one_group_here():
     grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
-               "vehicle.abs_target_slip"]
+               "vehicle.abs_target_slip", "scenario.sign"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -49,7 +49,8 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
     expected = dict.fromkeys(PICTURE_KEYS, sees or recorded)
     expected |= dict.fromkeys(COLOUR_KEYS, (sees and kind in PIXEL) or recorded)
     expected |= dict.fromkeys(SIDE_KEYS, "side" in cameras and (kind != "none" or recorded))
-    expected |= {"camera.seg_supersample": sees and kind == "oracle", "scenario.fog_start_m": False,  # no fog by default
+    expected |= {"camera.seg_supersample": sees and kind == "oracle",
+                 "scenario.sign": (sees and kind in PIXEL) or recorded,  # a texture (the default clean one) "scenario.fog_start_m": False,  # no fog by default
                  "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,
@@ -88,6 +89,21 @@ def test_conditions_on_other_keys_fog_seed_and_slip_control():
     check_read(with_overrides(no_jitter, {"perception": {"sensor_noise_std": 2.0}}), {"scenario.seed"})
     with pytest.raises(ConfigError, match=r"scenario\.seed"):  # the oracle draws no noise
         check_read(with_overrides(no_jitter, {"perception": {"kind": "oracle"}}), {"scenario.seed"})
+
+
+def test_no_stop_sign_is_read_by_every_run_and_a_texture_only_where_colour_is_drawn(tmp_path, capsys):
+    oracle = with_overrides(SimConfig(), {"perception": {"kind": "oracle"}})
+    with pytest.raises(ConfigError, match=r"^scenario\.sign is read only by every run for none .* this run's perception is "
+                                          r"oracle, which draws no colour image"):
+        check_read(with_overrides(oracle, {"scenario": {"sign": "eykholt"}}), {"scenario.sign"}, recorded=False)
+    check_read(with_overrides(oracle, {"scenario": {"sign": "none", "sign_yaw_deg": 0.0}}), {"scenario.sign"}, recorded=False)
+    check_read(with_overrides(oracle, {"scenario": {"sign": "eykholt"}}), {"scenario.sign"}, recorded=True)
+    assert cli.main(["run", "--policy", "autopilot", "--sign", "eykholt"]) == 2
+    assert "scenario.sign is read only by every run for none" in capsys.readouterr().err
+    # over a cell with no stop sign, a texture puts one there: read, and it runs (a second of the autopilot)
+    cell = _write(tmp_path, 'title = "t"\n[[cells]]\nname = "a"\npolicy = { name = "autopilot" }\nscenario = { sign = "none" }')
+    assert cli.main(["run", "--config", str(cell), "--cell", "a", "--sign", "eykholt", "--set", "loop.max_time_s=1"]) == 0
+    assert "sign eykholt" in capsys.readouterr().out
 
 
 def test_a_preset_set_beside_every_key_it_fills_is_refused():
@@ -192,12 +208,17 @@ UNREAD = [
      {"scenario": {"fog_end_m": 60.0, "fog_start_m": 2.0, "sun_intensity": 0.3, "materials": "textured",
                    "distractors": "red_signs", "layout_seed": 7},
       "camera": {"preset": "automotive_1080p", "side_yaw_deg": 40.0, "jpeg_quality": 40, "seg_supersample": 4},
-      "perception": {"oracle_min_box_height_px": 30.0}}),
+      "perception": {"oracle_min_box_height_px": 30.0}, "policy": {"conf_threshold": 0.2}}),
     ("the oracle draws no colour nor the side camera", {"perception": {"kind": "oracle"}},
      {"scenario": {"fog_end_m": 30.0, "sun_elevation_deg": 10.0},
       "camera": {"supersample": 2, "lens_mtf50_cyc_per_px": 0.2, "jpeg_quality": 40, "side_fovy_deg": 50.0, "side_yaw_deg": 45.0}}),
     ("none draws nothing", {"perception": {"kind": "none"}},
-     {"scenario": {"distractors": "red_signs", "layout_seed": 3}, "camera": {"width_px": 320, "fovy_deg": 60.0}}),
+     {"scenario": {"distractors": "red_signs", "layout_seed": 3}, "camera": {"width_px": 320, "fovy_deg": 60.0},
+      "policy": {"conf_threshold": 0.2, "trigger_dist_m": 90.0, "baseline_brake": 0.3}}),
+    ("a sign texture under the oracle", {"perception": {"kind": "oracle"}}, {"scenario": {"sign": "eykholt"}}),
+    ("a sign texture under the autopilot", {"policy": {"name": "autopilot"}}, {"scenario": {"sign": "yang"}}),
+    ("none gives map_prior no detection", {"policy": {"name": "map_prior"}, "perception": {"kind": "none"}},
+     {"policy": {"conf_threshold": 0.2, "trigger_dist_m": 90.0, "stop_margin_m": 4.0}}),
     ("no slip control", {"policy": {"name": "autopilot"}, "vehicle": {"abs_enabled": False, "traction_control_enabled": False}},
      {"vehicle": {"abs_target_slip": 0.3}}),
     ("no jitter, no noise", {"scenario": {"start_jitter_m": 0.0}, "perception": {"kind": "oracle"}}, {"scenario": {"seed": 9}}),

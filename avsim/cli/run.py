@@ -23,7 +23,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         # A batch's results file: the run's resolved config, as it ran; the flags apply on top.
         overrides = flag_overrides(args)
         seed = args.seed if args.seed is not None else 0
-        config = with_overrides(config_from_results(args.config, args.cell, seed), overrides)
+        base = config_from_results(args.config, args.cell, seed)
+        config = with_overrides(base, overrides)
     elif args.config:
         from avsim.config import with_overrides
         from avsim.experiments.spec import load_experiment
@@ -36,11 +37,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         # Run (cell, seed) exactly as the experiment's batch would, [vary] draws included;
         # the seed is 0 unless --seed or --set scenario.seed names another.
         seed = with_overrides(cell.config, overrides).scenario.seed
-        config = with_overrides(experiment.config_for(cell, seed), overrides)
+        base = experiment.config_for(cell, seed)
+        config = with_overrides(base, overrides)
     elif args.cell is not None:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
+        base = None  # the defaults: a clean stop sign
         config = config_from_args(args)
+    from avsim.config import NO_SIGN
     from avsim.config_owners import check_read, set_keys
     from avsim.experiments.spec import check_run_names
 
@@ -49,7 +53,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # (a recorder draws the front camera in colour, whatever the perception).
     # With --config, the seed picks the run of the file (its [vary] draw, its record), so it is read.
     recorded = bool(args.rrd or args.mp4 or args.mcap)
-    check_read(config, set_keys(flag_overrides(args)) - ({"scenario.seed"} if args.config else set()), recorded=recorded)
+    # A sign texture set over a run with no stop sign puts one there, which every run reads
+    # (over another texture it changes only colour pixels: read where colour is drawn).
+    always_read = {"scenario.seed"} if args.config else set()
+    if base is not None and base.scenario.sign == NO_SIGN:
+        always_read.add("scenario.sign")
+    check_read(config, set_keys(flag_overrides(args)) - always_read, recorded=recorded)
     if args.mcap:
         from avsim.recording.ros_types import require_rosbags
 

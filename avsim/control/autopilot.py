@@ -23,6 +23,7 @@ class AutopilotPolicy(BrakingPolicy):
     cameras = ()
     uses_map = True
     config_keys = ("autopilot_stop_margin_m", "autopilot_decel_fraction")
+    blind_keys = config_keys  # it never gets a detection
 
     def __init__(self, config: PolicyConfig, context: PolicyContext, map_handle: MapHandle) -> None:
         super().__init__(config, context)

@@ -37,6 +37,7 @@ class MapPriorPolicy(BrakingPolicy):
 
     uses_map = True
     config_keys = (*GATE_KEYS, "stop_margin_m", "autopilot_stop_margin_m", "autopilot_decel_fraction")
+    blind_keys = ("autopilot_stop_margin_m", "autopilot_decel_fraction")  # with no detection the map still stops it
 
     def __init__(self, config: PolicyConfig, context: PolicyContext, map_handle: MapHandle) -> None:
         super().__init__(config, context)

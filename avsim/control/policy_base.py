@@ -101,11 +101,14 @@ class BrakingPolicy(ABC):
     says whether it is built with the map handle (only reference policies are); `config_keys`
     lists the `policy.*` keys it reads besides `name`: a key it does not list is refused when a
     user sets it for this policy (`avsim.config_owners`), and a test checks the list against the
-    keys a policy really reads."""
+    keys a policy really reads. `blind_keys` are those of `config_keys` that still change its
+    decisions when it is given no detection (perception.kind = none, or no camera): a key that acts
+    only on a detection (the braking gate's, the brake it applies once triggered) is refused there."""
 
     cameras: tuple[str, ...] = ("front",)
     uses_map: bool = False
     config_keys: tuple[str, ...] = ()
+    blind_keys: tuple[str, ...] = ()
 
     def __init__(self, config: PolicyConfig, context: PolicyContext) -> None:
         self.config = config
