@@ -19,6 +19,7 @@ from __future__ import annotations
 from avsim.config import SimConfig
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
+from avsim.perception.factory import PERCEPTIONS
 
 
 def check_meaningful(config: SimConfig) -> None:
@@ -26,9 +27,9 @@ def check_meaningful(config: SimConfig) -> None:
     policy_class = POLICIES.get(config.policy.name)
     perceives = bool(policy_class.cameras)
     if perceives and config.perception.kind == "none":
+        seeing = ", ".join(name for name in PERCEPTIONS.names() if name != "none")
         raise ConfigError(f"policy '{config.policy.name}' brakes on what a perception sees, and perception.kind is "
-                          "none, so it would drive blind; choose a perception (detector, coco, ensemble, onnx, oracle) "
-                          "or a map-reading policy (autopilot)")
+                          f"none, so it would drive blind; choose a perception ({seeing}) or a map-reading policy (autopilot)")
     scenario, gate_m = config.scenario, config.policy.trigger_dist_m
     nearest_start_m = scenario.start_dist_m - scenario.start_jitter_m
     if perceives and gate_m is not None and scenario.start_speed_kmh == 0 and nearest_start_m <= gate_m:
