@@ -8,6 +8,7 @@ import argparse
 from pathlib import Path
 
 from avsim.cli.flags import BATCH_FLAG, WORKERS_FLAG
+from avsim.errors import ConfigError
 from avsim.cli.recording_modes import add_recording_modes
 from avsim.outputs import FOLDER, add_input_argument, add_output_argument
 from avsim.workers import BATCH_HELP, DEFAULT_BATCH
@@ -17,7 +18,9 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from avsim.experiments.reproduce import reproduce
 
     paths = [Path(p) for p in args.experiments] if args.experiments else None
-    out = reproduce(args.out, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
+    if args.resume is not None and args.out is not None:
+        raise ConfigError("give --out (a new reproduction's parent folder) or --resume FOLDER (the one to finish), not both")
+    out = reproduce(args.out or "results", resume=args.resume, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
                     rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "report.md").read_text())
@@ -72,7 +75,11 @@ def add_commands(sub) -> None:
                           "run by name with --experiments; the leaderboard is `avsim leaderboard`)")
     _add_pool_flags(rep, "runs at once: worker processes, or the local Ray cluster's CPUs (default: one per core); "
                          "with --address, at most this many in flight", BACKEND_HELP)
-    add_output_argument(rep, "--out", kind=FOLDER, default="results", help="folder in which the timestamped results folder is made")
+    add_output_argument(rep, "--out", kind=FOLDER, help="folder in which the timestamped results folder is made "
+                                                         "(default: results)")
+    add_output_argument(rep, "--resume", kind=FOLDER, metavar="FOLDER",
+                        help="finish the reproduction in FOLDER (a results/<timestamp> folder): keep its ok runs, run "
+                             "the rest with the same selection flags, then write the report")
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")

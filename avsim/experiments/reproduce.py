@@ -14,6 +14,12 @@ writes `results/<timestamp>/`:
 
 Every experiment file is loaded and checked before anything is written, so a bad file
 fails in one line with no half-made results folder.
+
+A reproduction stopped part-way (Ctrl-C, a kill, a full disk, a crash) is finished with the same
+command and `--resume FOLDER` (`reproduce(..., resume=FOLDER)`): the runs with an ok record in
+FOLDER/runs.jsonl are kept, the others run, and the report is written over all of them. A run is
+matched by experiment, cell, seed and config hash, so a run whose experiment file changed since
+runs again; runs no longer asked for keep their records, after the others.
 """
 
 from __future__ import annotations
@@ -25,11 +31,12 @@ import shutil
 import time
 from pathlib import Path
 
-from avsim.errors import ConfigError, Interrupted, RunsFailedError
+from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
-from avsim.experiments.batch import check_backend, resolve_workers, run_batch, software_versions
+from avsim.experiments.batch import check_backend, resolve_workers, software_versions
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
-from avsim.experiments.results_file import JsonlWriter, rewrite
+from avsim.experiments.results_file import read_records
+from avsim.experiments.resumable import manifest_history, run_resumable
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
@@ -90,9 +97,12 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
 def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
               address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False,
-              rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP) -> Path:
+              rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP, resume: str | os.PathLike | None = None) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
+
+    resume: a results folder of an earlier `reproduce` to finish instead of making a new one under
+    `results_root`: its ok runs are kept and the rest run (module docstring).
 
     rrd, mcap: which runs are recorded, "none", "failed" or "all" (`avsim.experiments.recordings`).
 
@@ -107,54 +117,63 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     workers = resolve_workers(workers, address)
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
-    out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
-    # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no folder.
+    if resume is not None:
+        out = Path(resume)
+        existing = resumable_records(out)
+    else:
+        out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
+        existing = []
+    selection = " ".join(part for part in (
+        "--all" if everything else "", "--quick" if quick else "",
+        "--experiments " + " ".join(map(str, experiment_paths)) if experiment_paths else "",
+        f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address else "",
+        recording_flags(rrd, mcap).strip()) if part)
+    # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no new folder.
     with locked_output(out, "avsim reproduce", results_name="runs.jsonl"):
-        return _reproduce_into(out, experiments, quick=quick, workers=workers, progress=progress, backend=backend,
-                               address=address, started=started, started_at=started_at, batch=batch, rrd=rrd, mcap=mcap)
+        return _reproduce_into(out, experiments, existing, selection=selection, workers=workers, progress=progress,
+                               backend=backend, address=address, started=started, started_at=started_at, batch=batch,
+                               rrd=rrd, mcap=mcap, resumed=resume is not None)
 
 
-def _reproduce_into(out: Path, experiments: list[Experiment], *, quick: bool, workers: int | None, progress: bool,
-                    backend: str, address: str | None, started: float, started_at: dt.datetime, batch: int, rrd: str,
-                    mcap: str) -> Path:
+def resumable_records(folder: Path) -> list[dict]:
+    """The records of the reproduction in `folder`, to finish it; a one-line ConfigError when
+    `folder` is not one (no runs.jsonl), or its runs.jsonl is not avsim's or has a corrupt line."""
+    runs = folder / "runs.jsonl"
+    if not runs.is_file():
+        raise ConfigError(f"--resume {folder}: no runs.jsonl there, so it is not a folder `avsim reproduce` made; "
+                          "name the results/<timestamp> folder of the reproduction to finish")
+    return read_records(runs)
+
+
+def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dict], *, selection: str,
+                    workers: int | None, progress: bool, backend: str, address: str | None, started: float,
+                    started_at: dt.datetime, batch: int, rrd: str, mcap: str, resumed: bool) -> Path:
     from avsim.experiments.reproduce_report import write_report
 
+    history = manifest_history(out / "manifest.json") if resumed else []
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
-    writer = JsonlWriter(out / "runs.jsonl")
-    finished = 0
-
-    def on_record(record: dict) -> None:
-        nonlocal finished
-        writer.append(record)
-        finished += 1
-
-    try:
-        records = run_batch(plan, workers=workers, root=out, on_record=on_record,
-                            progress=progress, description="reproduce", backend=backend, address=address,
-                            batch=batch)
-    except KeyboardInterrupt:
-        raise Interrupted(f"{finished} finished run(s) are in {writer.path}, with no report; `avsim reproduce` "
-                          "does not resume, so run it again for the report") from None
-    # Finishing order depends on the workers; the file ends in spec order, the same every time.
-    rewrite(out / "runs.jsonl", records)
+    # Runs are matched by name as well as config: two experiment files may share a config.
+    records, ran = run_resumable(plan, out / "runs.jsonl", existing, by_run=True, workers=workers, progress=progress,
+                                 resume_command=" ".join(filter(None, ("avsim reproduce", selection, f"--resume {out}"))),
+                                 description="reproduce", backend=backend, address=address, batch=batch)
     wall_s = time.perf_counter() - started
     manifest = {
-        "command": " ".join(part for part in ("avsim reproduce", "--quick" if quick else "",
-                                              f"--backend {backend}" if backend != "local" else "",
-                                              f"--address {address}" if address else "",
-                                              recording_flags(rrd, mcap).strip()) if part),
+        "command": " ".join(filter(None, ("avsim reproduce", selection, f"--resume {out}" if resumed else ""))),
         "backend": backend,
         "address": address,
         "started_at": started_at.isoformat(timespec="seconds"),
         "wall_s": round(wall_s, 1),
         "workers": workers,
         "runs": len(records),
+        "ran": ran,
+        "reused": len(records) - ran,
         "failed": sum(r["status"] == "failed" for r in records),
         "experiments": {e.path.stem: {"title": e.title, "seeds": e.seeds, "cells": [c.name for c in e.cells]}
                         for e in experiments},
         "versions": software_versions(),
+        "history": history,
     }
     write_json_atomic(out / "manifest.json", manifest)
     write_report(out, experiments, records, manifest)

@@ -17,8 +17,9 @@ the finished runs and the command that resumes it.
 
 from __future__ import annotations
 
+import json
 import os
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,9 +47,14 @@ def existing_records(results_path: Path, resume: bool) -> list[Record]:
 def run_resumable(specs: Iterable[RunSpec], results_path: Path, existing: Sequence[Record], *, resume_command: str,
                   workers: int | None, progress: bool = True, description: str = "runs", backend: str = "local",
                   address: str | None = None, decorate: Callable[[Record], Record] | None = None,
-                  batch: int = DEFAULT_BATCH, total: int | None = None) -> tuple[list[Record], int]:
+                  batch: int = DEFAULT_BATCH, total: int | None = None,
+                  by_run: bool = False) -> tuple[list[Record], int]:
     """Run the specs that `existing` has no ok record of; returns (one record per spec, in spec
-    order; how many were run). The specs' config hashes must differ.
+    order; how many were run). The specs' config hashes must differ, unless `by_run`.
+
+    by_run: match records to specs by (experiment, cell, seed, config hash) rather than by the
+    config hash alone, so that one config may appear under several names (two experiment files
+    of `avsim reproduce` that share a cell); those names must then differ.
 
     specs: a list or a `Plan`, built as the batch draws on it: a finished run is skipped as its
     spec comes, and only the specs' hashes (their order) are kept, not the specs.
@@ -57,18 +63,20 @@ def run_resumable(specs: Iterable[RunSpec], results_path: Path, existing: Sequen
     The other options go to `avsim.experiments.batch.run_batch`; the batch folder is
     `results_path`'s.
     """
-    finished = {r["spec_hash"]: r for r in existing if r.get("status") == "ok"}
+    key_of_record = record_key if by_run else (lambda record: record.get("spec_hash"))
+    key_of_spec = spec_key if by_run else (lambda spec: spec.spec_hash)
+    finished = {key_of_record(r): r for r in existing if r.get("status") == "ok"}
     if total is None:
         total = count_of(specs)
-    order: dict[str, None] = {}  # the specs' hashes in spec order, as they are built
+    order: dict[Hashable, None] = {}  # the specs' keys in spec order, as they are built
 
     def todo() -> Iterator[RunSpec]:
         for spec in specs:
-            spec_hash = spec.spec_hash
-            if spec_hash in order:
-                raise ValueError("two specs share a config hash; run each config once")
-            order[spec_hash] = None
-            if spec_hash not in finished:
+            key = key_of_spec(spec)
+            if key in order:
+                raise ValueError("two specs share a run key; run each config (each named run, with by_run) once")
+            order[key] = None
+            if key not in finished:
                 yield spec
 
     # `run_batch` draws on `todo` until it runs out, so once it returns `order` holds every spec's hash.
@@ -76,18 +84,19 @@ def run_resumable(specs: Iterable[RunSpec], results_path: Path, existing: Sequen
     if _torn_tail(results_path):
         rewrite(results_path, existing)  # else the next record would be glued onto the torn line
     writer = JsonlWriter(results_path)
-    ran: dict[str, Record] = {}
+    ran: dict[Hashable, Record] = {}
 
     def on_record(record: Record) -> None:
         if decorate is not None:
             record = decorate(record)
         # Counted first, so a Ctrl-C that lands after the line is written never reports it missing;
         # a line that could not be written (a full disk) is not counted.
-        ran[record["spec_hash"]] = record
+        key = key_of_record(record)
+        ran[key] = record
         try:
             writer.append(record)
         except OutputError:
-            del ran[record["spec_hash"]]
+            del ran[key]
             raise
 
     # The bar counts the runs to run: every spec but the finished ones (an estimate where the file
@@ -100,10 +109,31 @@ def run_resumable(specs: Iterable[RunSpec], results_path: Path, existing: Sequen
         raise Interrupted(resume_hint(resume_command, results_path, len(finished) + len(ran))) from None
     except OutputError as exc:  # a full disk: the file holds whole records only, so a resume loses none
         raise OutputError(f"{exc}; {resume_hint(resume_command, results_path, len(finished) + len(ran))}") from None
-    records = [ran.get(h) or finished[h] for h in order]
-    others = [r for r in existing if r.get("spec_hash") not in order]
+    records = [ran.get(key) or finished[key] for key in order]
+    others = [r for r in existing if key_of_record(r) not in order]
     rewrite(results_path, records + others)
     return records, len(ran)
+
+
+def manifest_history(manifest_path: Path) -> list[Record]:
+    """The earlier invocations that filled a resumed folder, from its manifest.json (resumed ones
+    included): command, start, wall time, runs run; [] when there is no readable manifest."""
+    try:
+        previous = json.loads(manifest_path.read_text())
+    except (OSError, ValueError):
+        return []
+    earlier = previous.get("history", [])
+    return [*earlier, {k: previous[k] for k in ("command", "started_at", "wall_s", "ran") if k in previous}]
+
+
+def spec_key(spec: RunSpec) -> tuple[str, str, int, str]:
+    """A run's identity under `by_run`: where it is in its batch, and what it runs."""
+    return spec.experiment, spec.cell, spec.seed, spec.spec_hash
+
+
+def record_key(record: Record) -> tuple[Any, Any, Any, Any]:
+    """The `spec_key` of the run a record is of."""
+    return record.get("experiment"), record.get("cell"), record.get("seed"), record.get("spec_hash")
 
 
 def resume_hint(command: str, results_path: Path, finished: int) -> str:

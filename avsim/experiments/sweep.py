@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import datetime as dt
 import itertools
-import json
 import math
 import os
 import shutil
@@ -65,7 +64,7 @@ from avsim.experiments.batch import check_backend, resolve_workers, software_ver
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
-from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
@@ -300,7 +299,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
 
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
-    history = _history(out / "manifest.json") if resume else []
+    history = manifest_history(out / "manifest.json") if resume else []
     out.mkdir(parents=True, exist_ok=True)
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
@@ -338,16 +337,6 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
         raise RunsFailedError(f"every one of the {len(records)} runs failed (the first: {first}); "
                               f"see {out / 'summary.md'}")
     return out
-
-
-def _history(manifest_path: Path) -> list[dict[str, Any]]:
-    """The earlier invocations that filled the folder (resumed ones included): command, start, wall time, runs run."""
-    try:
-        previous = json.loads(manifest_path.read_text())
-    except (OSError, ValueError):
-        return []
-    earlier = previous.get("history", [])
-    return [*earlier, {k: previous[k] for k in ("command", "started_at", "wall_s", "ran") if k in previous}]
 
 
 def with_point(record: dict[str, Any], point: Mapping[str, Scalar]) -> dict[str, Any]:

@@ -131,7 +131,7 @@ def test_ctrl_c_during_a_sweep_says_how_to_resume_and_resuming_gives_the_same_re
     assert _temporaries(out) == []
 
 
-def test_ctrl_c_during_reproduce_stops_its_workers_and_leaves_no_temporary_recording(tmp_path):
+def test_ctrl_c_during_reproduce_stops_its_workers_and_the_command_it_names_finishes_the_reproduction(tmp_path):
     experiment = tmp_path / "table3_stop_positions.toml"
     experiment.write_text("""
 title = "t"
@@ -154,10 +154,22 @@ name = "clean sign, baseline"
     os.killpg(proc.pid, signal.SIGINT)
     assert proc.wait(timeout=TIMEOUT_S) == 130
     err = log.read_text()
-    assert len(err.splitlines()) == 1 and "finished run(s) are in" in err, err
+    assert len(err.splitlines()) == 1 and "resume with: avsim reproduce --experiments" in err, err
     assert _wait_gone(workers, 5.0) == []
     recordings = [p.name for p in root.rglob("*") if p.is_file() and p.suffix != ".jsonl" and p.suffix != ".toml"]
     assert all(name.endswith(".rrd") and not name.startswith(".") for name in recordings), recordings
+
+    (folder,) = root.iterdir()
+    kept = read_records(folder / "runs.jsonl")
+    resume_argv = err.split("resume with: avsim ", 1)[1].split()
+    assert resume_argv[-2:] == ["--resume", str(folder)], err
+    proc = start_avsim([*resume_argv, "--workers", "2", "--no-progress"], log)
+    assert proc.wait(timeout=TIMEOUT_S) == 0, log.read_text()
+    records = read_records(folder / "runs.jsonl")
+    assert [r["seed"] for r in records] == [0, 1, 2, 3] and all(r["status"] == "ok" for r in records)
+    by_seed = {r["seed"]: r for r in records}
+    assert kept and all(by_seed[k["seed"]] == k for k in kept)  # kept as they were, not run again
+    assert json.loads((folder / "manifest.json").read_text())["reused"] == len(kept)
 
 
 def _kill_sweep_and_time_its_workers(tmp_path: Path, backend_args: list[str], worker_pids) -> None:

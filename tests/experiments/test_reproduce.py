@@ -1,6 +1,7 @@
 """`avsim reproduce` on a tiny, fast stand-in for the study's Table III (oracle perception, short runs)."""
 
 import json
+import shutil
 
 import pytest
 
@@ -8,7 +9,7 @@ from avsim import cli
 from avsim.experiments.recordings import slug
 from avsim.experiments.reproduce import (EXPERIMENTS_DIR, MORE_EXPERIMENTS, STUDY_EXPERIMENTS, YOLO_EXPERIMENTS,
                                           load_study, reproduce)
-from avsim.experiments.results_file import read_records
+from avsim.experiments.results_file import encode, read_records
 
 # The study's Table III cell names, so the report sets them beside the study's figures.
 TINY_TABLE3 = """
@@ -84,6 +85,61 @@ def test_every_experiment_file_is_in_the_study_in_all_or_among_the_yolo_files_ru
     listed = [name for group in groups for name in group]
     assert len(listed) == len(set(listed))
     assert set(listed) == shipped - {p for p in shipped if p.startswith(("sweeps/", "leaderboards/"))}
+
+
+def _without_wall(records):
+    return [{k: v for k, v in r.items() if k != "wall_s"} for r in records]
+
+
+def test_a_resumed_reproduction_runs_only_the_missing_runs_and_ends_as_one_never_stopped(results, tmp_path):
+    full = read_records(results / "runs.jsonl")
+    stopped = tmp_path / "stopped"
+    shutil.copytree(results, stopped)
+    # What a reproduction stopped part-way leaves: some runs in finishing order, a torn last line, no report.
+    kept = [full[3], full[0], full[6], full[1], full[5]]
+    (stopped / "runs.jsonl").write_text("".join(map(encode, kept)) + '{"experiment": "table3_st')
+    for name in ("report.md", "manifest.json"):
+        (stopped / name).unlink()
+    paths = [results.parents[1] / "table3_stop_positions.toml", results.parents[1] / "fig3_detection.toml"]
+
+    out = reproduce(tmp_path / "unused", workers=1, experiment_paths=paths, progress=False, rrd="all", resume=stopped)
+
+    assert out == stopped and not (tmp_path / "unused").exists()
+    records = read_records(stopped / "runs.jsonl")
+    assert _without_wall(records) == _without_wall(full)  # the same runs, results and order as never stopped
+    assert [r for r in records if r in kept] == [full[0], full[1], full[3], full[5], full[6]]  # kept, not run again
+    manifest = json.loads((stopped / "manifest.json").read_text())
+    assert (manifest["runs"], manifest["ran"], manifest["reused"]) == (7, 2, 5)
+    assert manifest["command"].endswith(f"--resume {stopped}") and "--experiments" in manifest["command"]
+    assert "| clean sign, baseline | 2/2 |" in (stopped / "report.md").read_text()
+
+
+def test_a_resumed_run_whose_experiment_file_changed_runs_again(results, tmp_path):
+    stopped = tmp_path / "stopped"
+    shutil.copytree(results, stopped)
+    changed = tmp_path / "fig3_detection.toml"
+    changed.write_text(TINY_FIG3.replace("start_dist_m = 50", "start_dist_m = 45"))
+    reproduce(tmp_path, workers=1, experiment_paths=[changed], progress=False, rrd="none", resume=stopped)
+    manifest = json.loads((stopped / "manifest.json").read_text())
+    assert (manifest["ran"], manifest["reused"]) == (1, 0)
+    records = read_records(stopped / "runs.jsonl")
+    # The changed file's run first; the old records of both files are kept after it.
+    assert records[0]["result"]["config"]["scenario"]["start_dist_m"] == 45.0
+    assert _without_wall(records[1:]) == _without_wall(read_records(results / "runs.jsonl"))
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--resume", "{tmp}/nowhere"], "no runs.jsonl there"),
+    (["--resume", "{tmp}", "--out", "{tmp}/results"], "not both"),
+])
+def test_a_bad_resume_fails_in_one_line_and_writes_nothing(tmp_path, capsys, argv, expected):
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3)
+    before = sorted(tmp_path.rglob("*"))
+    code = cli.main(["reproduce", "--experiments", str(experiment), *[a.format(tmp=tmp_path) for a in argv]])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and expected in err, err
+    assert sorted(tmp_path.rglob("*")) == before
 
 
 def test_quick_keeps_one_seed_per_cell(tmp_path):
