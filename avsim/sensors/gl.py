@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from avsim.errors import RenderError
+from avsim.sensors.culling import cullable, outside_view
 from avsim.termination import raise_if_interrupted
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
@@ -26,7 +27,9 @@ class OffscreenRenderer:
     """
 
     def __init__(self, model: mujoco.MjModel, width_px: int, height_px: int, segmentation: bool,
-                 fog: bool = False, max_geom: int = 10000) -> None:
+                 fog: bool = False, max_geom: int = 10000, cull: bool = True) -> None:
+        """cull: leave the geoms the camera cannot see out of each render, where that cannot change
+        a pixel (`avsim.sensors.culling`); False draws every geom, as a check of it."""
         try:
             self._gl = mujoco.GLContext(width_px, height_px)
             self._gl.make_current()
@@ -51,6 +54,7 @@ class OffscreenRenderer:
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._perturb = mujoco.MjvPerturb()
         self._rect = mujoco.MjrRect(0, 0, width_px, height_px)
+        self.cull = cull
         self._buffer = np.empty((height_px, width_px, 3), dtype=np.uint8)
 
     def render(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption,
@@ -64,7 +68,7 @@ class OffscreenRenderer:
         """
         self._gl.make_current()
         self._camera.fixedcamid = camera_id
-        mujoco.mjv_updateScene(self._model, data, option, self._perturb, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+        self._update_scene(data, camera_id, option)
         mujoco.mjr_render(self._rect, self._scene, self._con)
         if region is None:
             mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
@@ -74,6 +78,26 @@ class OffscreenRenderer:
         out = self._buffer.reshape(-1)[: (y1 - y0) * (x1 - x0) * 3].reshape(y1 - y0, x1 - x0, 3)
         mujoco.mjr_readPixels(out, None, mujoco.MjrRect(x0, height - y1, x1 - x0, y1 - y0), self._con)
         return out[::-1]
+
+    def _update_scene(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption) -> None:
+        """Fill the scene from `data`, without the geoms `camera_id` cannot see where culling is exact.
+
+        MuJoCo leaves a geom whose colour has alpha 0 out of the scene, so the hidden geoms' alphas
+        are zeroed for the update and put back at once: the model is as it was after the call.
+        """
+        model = self._model
+        hidden = None
+        if self.cull and cullable(model, camera_id):
+            hidden = np.flatnonzero(outside_view(model, data, camera_id, self._rect.width / self._rect.height))
+        if hidden is None or hidden.size == 0:
+            mujoco.mjv_updateScene(model, data, option, self._perturb, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+            return
+        alphas = model.geom_rgba[hidden, 3].copy()
+        model.geom_rgba[hidden, 3] = 0.0
+        try:
+            mujoco.mjv_updateScene(model, data, option, self._perturb, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+        finally:
+            model.geom_rgba[hidden, 3] = alphas
 
     @property
     def scene_geom_count(self) -> int:
