@@ -44,6 +44,9 @@ DISTRACTORS = ("none", "red_signs")
 MAP_ERRORS = ("none", "missing_stop", "phantom_stop")
 # Values of ScenarioConfig.materials (world/props.py, world/surface_textures.py).
 MATERIALS = ("flat", "textured")
+# Values of ScenarioConfig.sign_materials (world/sign_materials.py) and .sun_shadow_map_px (world/scene.py; 0: no shadow).
+SIGN_MATERIALS = ("flat", "sheeting")
+SHADOW_MAP_SIZES_PX = (0, 1024, 2048, 4096, 8192)
 # A stop sign turned at most this far from facing the car is for the car; one turned at least
 # SIGN_YAW_NOT_OURS_DEG faces the cross street. In between it is ambiguous, and refused.
 SIGN_YAW_FACING_DEG = 30.0
@@ -118,10 +121,21 @@ class ScenarioConfig:
     # Surfaces: "flat", one colour each (the default renders); "textured", procedural texture at
     # the scale a camera resolves (world/surface_textures.py, docs/realism.md).
     materials: str = "flat"
+    # Signs: "flat", the faces' design colours on a plain grey plate and post (the default renders);
+    # "sheeting", the faces in the standard's sheeting colours on an aluminium blank and a galvanised post
+    # (world/sign_materials.py, docs/realism.md).
+    sign_materials: str = "flat"
+    # The sun's shadows: 0, none (the default renders); else the side of the shadow map [texels].
+    sun_shadow_map_px: int = 0
 
     def __post_init__(self) -> None:
         check_ranges(self, "scenario")
         _require(self.materials in MATERIALS, f"scenario.materials must be one of {', '.join(MATERIALS)}, got {self.materials!r}")
+        _require(self.sign_materials in SIGN_MATERIALS,
+                 f"scenario.sign_materials must be one of {', '.join(SIGN_MATERIALS)}, got {self.sign_materials!r}")
+        _require(type(self.sun_shadow_map_px) is int and self.sun_shadow_map_px in SHADOW_MAP_SIZES_PX,
+                 f"scenario.sun_shadow_map_px must be one of {', '.join(map(str, SHADOW_MAP_SIZES_PX))} (0: no shadows), "
+                 f"got {self.sun_shadow_map_px!r}")
         _require(self.fog_end_m == 0 or 0 <= self.fog_start_m < self.fog_end_m,
                  f"scenario.fog_start_m must be >= 0 and below fog_end_m (or fog_end_m = 0 for no fog), got {self.fog_start_m}, {self.fog_end_m}")
         yaw = abs(self.sign_yaw_deg)

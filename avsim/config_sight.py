@@ -161,9 +161,10 @@ SLIP_CONTROL = Condition(
 # the colour keys change only colour pixels (segmentation draws flat ids, without light or fog).
 RUN_CONDITIONS: dict[str, Condition] = {
     **dict.fromkeys(("camera.preset", "camera.width_px", "camera.height_px", "camera.fovy_deg", "camera.offsamples",
-                     "scenario.distractors", "scenario.layout_seed"), PICTURE),
+                     "scenario.distractors", "scenario.layout_seed", "scenario.sign_materials"), PICTURE),
     **dict.fromkeys(("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
-                     "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials"), COLOUR),
+                     "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
+                     "scenario.sun_shadow_map_px"), COLOUR),
     "scenario.fog_start_m": FOG_START,
     # A texture over another (alpha dropped, the same square face) changes only colour pixels; over
     # `none` it puts a stop sign where there was none, read by every run: `avsim run --config`

@@ -36,6 +36,10 @@ LENS_MTF50_CYC_PER_PX = 0.33
 # JPEG quality of an ISP that stores or streams compressed frames: an assumed high quality.
 ISP_JPEG_QUALITY = 90
 
+# The sun's shadow map: 4096 texels over the +-60 m it covers (avsim/world/scene.py), 2.9 cm a texel,
+# about the size of a pixel at 26 m with the study camera.
+SHADOW_MAP_PX = 4096
+
 _PHOTO = {"supersample": 2, "lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX, "jpeg_quality": ISP_JPEG_QUALITY}
 SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
     RenderSetting("baseline", {}, "the default renderer: one sample per pixel, an ideal lens, no encoding"),
@@ -49,5 +53,11 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
     RenderSetting("automotive_1080p", {"camera": {"preset": "automotive_1080p"}},
                   "a modern automotive front camera: 1920x1080 at 55 deg horizontal field of view (f 1844 px against 896)"),
     RenderSetting("textured_photo", {"scenario": {"materials": "textured"}, "camera": _PHOTO}, "textured and photo together"),
+    RenderSetting("sheeting", {"scenario": {"sign_materials": "sheeting"}},
+                  "sign faces in the standard's sheeting colours (23 CFR 655 boxes) on an aluminium blank, galvanised posts"),
+    RenderSetting("shadows", {"scenario": {"sun_shadow_map_px": SHADOW_MAP_PX}}, "the sun casts shadows (4096-texel map)"),
+    RenderSetting("textured_sheeting_shadows",
+                  {"scenario": {"materials": "textured", "sign_materials": "sheeting", "sun_shadow_map_px": SHADOW_MAP_PX}},
+                  "textured, sheeting and shadows together"),
 )})
 

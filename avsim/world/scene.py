@@ -20,6 +20,7 @@ from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
 from avsim.world import props
 from avsim.world.distractors import add_red_signs
 from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
+from avsim.world import sign_materials
 from avsim.world.signs import SIGN_SHAPES, PlacedSign, add_sign
 from avsim.world.textures import CLEAN_TEXTURE_FILES, TEXTURE_DIR, load_texture_png
 from avsim.world.towns import PLACEMENTS, TOWNS
@@ -34,6 +35,15 @@ NO_STOP_SIGN_KIND = "speed_limit"
 ZNEAR_M, ZFAR_M = 0.2, 1500.0
 # MuJoCo scales znear/zfar/fog by the model extent; fixing it keeps them in metres / 100.
 EXTENT_M = 100.0
+# Sun shadows (scenario.sun_shadow_map_px > 0). MuJoCo draws a directional light's shadow map as an
+# orthographic view along the light, +-shadowclip * extent square about the light's axis, which passes
+# through the light's position. The sun follows the car (track mode: a fixed offset in the world frame)
+# with its axis through a point SUN_SHADOW_AIM_AHEAD_M ahead of the car's origin, so the map covers the
+# road ahead, where the cameras look (the realism frames are 10-60 m from the sign). It stands
+# SUN_SHADOW_DISTANCE_M back along the sun's direction, above everything that can cast a shadow there.
+SUN_SHADOW_HALF_WIDTH_M = 60.0
+SUN_SHADOW_AIM_AHEAD_M = 50.0
+SUN_SHADOW_DISTANCE_M = 300.0
 
 
 @dataclass(frozen=True)
@@ -94,17 +104,23 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     lateral_offset_m = PLACEMENTS.get(scenario.placement)
     if target_kind == "stop_sign" and scenario.sign == NO_SIGN:
         target_kind = NO_STOP_SIGN_KIND
-    if target_kind == "stop_sign":
+    sheeting = scenario.sign_materials == "sheeting"
+    if target_kind == "stop_sign" and scenario.sign != "clean":
+        # A user's texture is the printed face under test: its pixels are its colours, whatever the sheeting.
         target_texture = load_texture_png(resolve_sign_texture(scenario.sign), expected_aspect=1.0)
     else:
-        target_texture = _clean_texture(target_kind)
+        target_texture = _clean_texture(target_kind, sheeting)
 
     spec = mujoco.MjSpec()
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
     props.add_materials(spec, textured=scenario.materials == "textured")
+    if sheeting:
+        sign_materials.add_metal_materials(spec)
     props.add_ground(spec, town.ground_material)
-    _add_sun(spec, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
+    shadows = scenario.sun_shadow_map_px > 0
+    if not shadows:
+        _add_sun(spec.worldbody, scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity)
     add_road(spec, town.layout, stop_line=scenario.stop_required)
     rng = np.random.default_rng(scenario.layout_seed)
     extra_signs = town.build_scenery(spec, town.layout, rng)
@@ -117,19 +133,25 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
         # Positive sign_yaw_deg turns the face towards the car's right (-y), to the cross street.
         math.radians(scenario.sign_yaw_deg), SIGN_BOTTOM_M,
     )
-    add_sign(spec, target, target_texture)
+    add_sign(spec, target, target_texture, metal=sheeting)
     for sign in extra_signs:
-        add_sign(spec, sign, _clean_texture(sign.kind))
+        add_sign(spec, sign, _clean_texture(sign.kind, sheeting), metal=sheeting)
     info = SceneInfo(town.name, scenario.placement, town.layout, target, (target, *extra_signs),
                      stop_required=scenario.stop_required)
     if add_extras is not None:
         add_extras(spec, info)
     _attach_car(spec, config.vehicle, config.camera)
+    if shadows:
+        _add_sun(spec.body(f"{CAR_PREFIX}car"), scenario.sun_elevation_deg, scenario.sun_azimuth_deg, scenario.sun_intensity,
+                 shadow=True)
     add_tyre_contacts(spec, props.GROUND_CONTACT_GEOM, scenario.road_friction)
     return spec, info
 
 
-def _clean_texture(kind: str) -> np.ndarray:
+def _clean_texture(kind: str, sheeting: bool = False) -> np.ndarray:
+    """The clean face of sign `kind`: in the sheeting's colours (drawn), or the design colours (textures/)."""
+    if sheeting:
+        return sign_materials.sheeting_face(kind)
     shape = SIGN_SHAPES[kind]
     return load_texture_png(TEXTURE_DIR / CLEAN_TEXTURE_FILES[kind], expected_aspect=shape.width_m / shape.height_m)
 
@@ -148,6 +170,9 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
         spec.visual.map.fogend = config.scenario.fog_end_m / EXTENT_M
     spec.visual.rgba.fog = [0.78, 0.8, 0.83, 1.0]
     spec.visual.quality.offsamples = config.camera.offsamples
+    if config.scenario.sun_shadow_map_px:
+        spec.visual.quality.shadowsize = config.scenario.sun_shadow_map_px
+        spec.visual.map.shadowclip = SUN_SHADOW_HALF_WIDTH_M / EXTENT_M
     # Software rasterisers are vertex-bound on our scenes: coarser spheres and
     # cylinders (trees, posts) cost little in looks and save about a third of a frame.
     spec.visual.quality.numslices = 12
@@ -160,14 +185,20 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
     spec.visual.headlight.specular = [0.0, 0.0, 0.0]
 
 
-def _add_sun(spec: mujoco.MjSpec, elevation_deg: float, azimuth_deg: float, intensity: float) -> None:
+def _add_sun(body: mujoco.MjsBody, elevation_deg: float, azimuth_deg: float, intensity: float, shadow: bool = False) -> None:
+    """The sun: a directional light in `body`. Without `shadow`, `body` is the world body (the default
+    renders). With it, `body` is the car's, the light tracks it and casts shadows (see SUN_SHADOW_*)."""
     el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
     direction = [-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el)]
-    spec.worldbody.add_light(
+    light = body.add_light(
         name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, dir=direction, pos=[0, 0, 100],
         diffuse=[0.75 * intensity, 0.73 * intensity, 0.68 * intensity], ambient=[0.1, 0.1, 0.1],
-        specular=[0.1, 0.1, 0.1], castshadow=False,
+        specular=[0.1, 0.1, 0.1], castshadow=shadow,
     )
+    if shadow:
+        light.mode = mujoco.mjtCamLight.mjCAMLIGHT_TRACK
+        # The car's body frame is level and at the world's heading at its model pose, so this offset is in world axes.
+        light.pos = (np.array([SUN_SHADOW_AIM_AHEAD_M, 0.0, 0.0]) - SUN_SHADOW_DISTANCE_M * np.asarray(direction)).tolist()
 
 
 def _attach_car(spec: mujoco.MjSpec, vehicle: VehicleConfig, camera: CameraConfig) -> None:

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from avsim.world.sign_materials import ALUMINIUM, BLANK_THICKNESS_M, GALVANISED
+
 FACE_THICKNESS_M = 0.004
 POST_HALF_WIDTH_M = 0.035
 # Texture coordinate of a grey texel outside every sign shape: the back and rim of the
@@ -111,22 +113,17 @@ class PlacedSign:
         return self.face_points_m(np.asarray(self.shape.outline_yz))
 
 
-def _face_mesh(shape: SignShape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Vertices (V, 3), faces (F, 3) and texcoords (V, 2) of the face prism, in face-local metres.
-
-    The face centre sits at the origin; the front cap is at x = -thickness, facing -x.
-    """
+def _outline_prism(shape: SignShape, thickness_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) and outward faces (F, 3) of a prism of the face outline, in face-local metres: its
+    front cap at x = -thickness_m facing -x, its back cap at x = 0, the outline centred on the origin.
+    Vertex 0 is the front cap's centre, 1..n its rim; n + 1 the back cap's centre, then its rim."""
     rim = np.asarray(shape.outline_yz)
     n = len(rim)
-    centre_z = 0.0
     front = np.vstack([[0.0, 0.0], rim])
     verts = np.vstack([
-        np.column_stack([np.full(n + 1, -FACE_THICKNESS_M), front[:, 0], front[:, 1] + centre_z]),
-        np.column_stack([np.zeros(n + 1), front[:, 0], front[:, 1] + centre_z]),
+        np.column_stack([np.full(n + 1, -thickness_m), front[:, 0], front[:, 1]]),
+        np.column_stack([np.zeros(n + 1), front[:, 0], front[:, 1]]),
     ])
-    # The viewer looks along +x, so their right is -y: u grows towards -y, v downwards.
-    uv_front = np.column_stack([0.5 - front[:, 0] / shape.width_m, 0.5 - front[:, 1] / shape.height_m])
-    uv = np.vstack([uv_front, np.tile(_BACK_UV, (n + 1, 1))])
     faces = []
     for i in range(1, n + 1):
         j = i % n + 1
@@ -134,8 +131,20 @@ def _face_mesh(shape: SignShape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         faces.append((n + 1, n + 1 + j, n + 1 + i))  # back cap
         faces.append((i, n + 1 + i, n + 1 + j))  # rim
         faces.append((i, n + 1 + j, j))
-    faces_arr = _orient_outwards(verts, np.asarray(faces))
-    return verts, faces_arr, uv
+    return verts, _orient_outwards(verts, np.asarray(faces))
+
+
+def _face_mesh(shape: SignShape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertices (V, 3), faces (F, 3) and texcoords (V, 2) of the face prism, in face-local metres.
+
+    The face centre sits at the origin; the front cap is at x = -thickness, facing -x.
+    """
+    verts, faces = _outline_prism(shape, FACE_THICKNESS_M)
+    front = np.vstack([[0.0, 0.0], np.asarray(shape.outline_yz)])
+    # The viewer looks along +x, so their right is -y: u grows towards -y, v downwards.
+    uv_front = np.column_stack([0.5 - front[:, 0] / shape.width_m, 0.5 - front[:, 1] / shape.height_m])
+    uv = np.vstack([uv_front, np.tile(_BACK_UV, (len(front), 1))])
+    return verts, faces, uv
 
 
 def _orient_outwards(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -149,19 +158,21 @@ def _orient_outwards(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return faces
 
 
-def add_sign(spec: mujoco.MjSpec, sign: PlacedSign, texture_rgb: np.ndarray) -> None:
+def add_sign(spec: mujoco.MjSpec, sign: PlacedSign, texture_rgb: np.ndarray, metal: bool = False) -> None:
     """Add `sign` (post, textured face) as a static body of `spec`.
 
     texture_rgb: (H, W, 3) uint8, RGB, covering the face's `width_m` x `height_m`
     footprint with row 0 at the top edge.
+    metal: the face on an aluminium blank and the post galvanised (`avsim.world.sign_materials`, whose
+    materials `spec` must hold); else a plain grey post and the face prism's own grey back.
     """
-    add_plate(spec, sign.name, sign.shape, sign.base_pos_m, sign.yaw_rad, sign.bottom_height_m, texture_rgb)
+    add_plate(spec, sign.name, sign.shape, sign.base_pos_m, sign.yaw_rad, sign.bottom_height_m, texture_rgb, metal)
 
 
 def add_plate(spec: mujoco.MjSpec, name: str, shape: SignShape, base_pos_m: tuple[float, float, float], yaw_rad: float,
-              bottom_height_m: float, texture_rgb: np.ndarray) -> None:
+              bottom_height_m: float, texture_rgb: np.ndarray, metal: bool = False) -> None:
     """A textured plate of any outline on a post (a sign, or a sign-like board that is none), as a
-    static body named `name`; the frame, yaw and texture as for `add_sign`."""
+    static body named `name`; the frame, yaw, texture and `metal` as for `add_sign`."""
     tex = spec.add_texture(name=f"{name}/texture", type=mujoco.mjtTexture.mjTEXTURE_2D)
     set_texture_data(tex, texture_rgb)
     mat = spec.add_material(name=f"{name}/material")
@@ -177,16 +188,28 @@ def add_plate(spec: mujoco.MjSpec, name: str, shape: SignShape, base_pos_m: tupl
     body = spec.worldbody.add_body(name=name, pos=list(base_pos_m), quat=[c, 0, 0, s])
     centre_z = bottom_height_m + shape.height_m / 2
     post_top_m = centre_z
-    body.add_geom(
+    post = body.add_geom(
         name=f"{name}/post", type=mujoco.mjtGeom.mjGEOM_BOX,
         size=[POST_HALF_WIDTH_M, POST_HALF_WIDTH_M, post_top_m / 2], pos=[0, 0, post_top_m / 2],
         rgba=[0.55, 0.56, 0.58, 1], contype=0, conaffinity=0,
     )
+    if metal:
+        post.material = GALVANISED
+        _add_blank(spec, body, name, shape, centre_z)
     body.add_geom(
         name=f"{name}/face", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{name}/face_mesh",
         material=f"{name}/material", pos=[-POST_HALF_WIDTH_M, 0, centre_z],
         contype=0, conaffinity=0,
     )
+
+
+def _add_blank(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str, shape: SignShape, centre_z_m: float) -> None:
+    """The aluminium blank the face is mounted on: a BLANK_THICKNESS_M prism of the face's outline right
+    behind it, seen from behind and at the rim."""
+    verts, faces = _outline_prism(shape, BLANK_THICKNESS_M)
+    spec.add_mesh(name=f"{name}/blank_mesh", uservert=verts.ravel().tolist(), userface=faces.ravel().tolist())
+    body.add_geom(name=f"{name}/blank", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{name}/blank_mesh", material=ALUMINIUM,
+                  pos=[-POST_HALF_WIDTH_M + BLANK_THICKNESS_M, 0, centre_z_m], contype=0, conaffinity=0)
 
 
 def set_texture_data(tex: mujoco.MjsTexture, rgb: np.ndarray) -> None:

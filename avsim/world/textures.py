@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -30,6 +31,19 @@ MIN_SIDE_PX, MAX_SIDE_PX = 32, 4096
 
 RED, WHITE, BLACK = (200, 16, 46), (255, 255, 255), (0, 0, 0)  # MUTCD red
 GREY = (128, 128, 128)  # outside the sign outline; the mesh never samples it
+
+
+@dataclass(frozen=True)
+class Palette:
+    """The colours a sign face is drawn in, 8-bit RGB each: the design colours by default
+    (`avsim.world.sign_materials` has the sheeting's)."""
+
+    red: tuple[int, int, int] = RED
+    white: tuple[int, int, int] = WHITE
+    black: tuple[int, int, int] = BLACK
+
+
+DESIGN_PALETTE = Palette()
 
 _FONT = cv2.FONT_HERSHEY_DUPLEX
 # fillPoly takes fixed-point vertices; 4 fractional bits keep edges sub-pixel exact.
@@ -110,7 +124,7 @@ def _text(img: np.ndarray, text: str, color: tuple[int, int, int], center: tuple
     region[:] = np.round(region * (1.0 - alpha) + np.float32(color) * alpha).astype(np.uint8)
 
 
-def make_stop_sign(size_px: int = 512) -> np.ndarray:
+def make_stop_sign(size_px: int = 512, palette: Palette = DESIGN_PALETTE) -> np.ndarray:
     """Stop sign face (MUTCD R1-1) as RGB uint8, shape (size_px, size_px, 3).
 
     The image is the sign's bounding square: the octagon's four flats touch the four
@@ -121,15 +135,15 @@ def make_stop_sign(size_px: int = 512) -> np.ndarray:
     s = float(size_px)
     img = np.full((size_px, size_px, 3), GREY, np.uint8)
     c, rim, band = s / 2.0, 0.015 * s, 0.03 * s  # red rim, then white border band, as on R1-1
-    _fill(img, _octagon(c, c, s), RED)
-    _fill(img, _octagon(c, c, s - 2 * rim), WHITE)
-    _fill(img, _octagon(c, c, s - 2 * (rim + band)), RED)
+    _fill(img, _octagon(c, c, s), palette.red)
+    _fill(img, _octagon(c, c, s - 2 * rim), palette.white)
+    _fill(img, _octagon(c, c, s - 2 * (rim + band)), palette.red)
     # Real legend letters are a third of the sign height; Hershey glyphs are squatter.
-    _text(img, "STOP", WHITE, (c, c), height=0.27 * s, width=0.70 * s, weight=0.16)
+    _text(img, "STOP", palette.white, (c, c), height=0.27 * s, width=0.70 * s, weight=0.16)
     return img
 
 
-def make_yield_sign(size_px: int = 512) -> np.ndarray:
+def make_yield_sign(size_px: int = 512, palette: Palette = DESIGN_PALETTE) -> np.ndarray:
     """Yield sign face (MUTCD R1-2) as RGB uint8, shape (size_px, size_px, 3).
 
     The downward-pointing equilateral triangle has its top edge along the image's top
@@ -140,17 +154,17 @@ def make_yield_sign(size_px: int = 512) -> np.ndarray:
     img = np.full((size_px, size_px, 3), GREY, np.uint8)
     tri_h = s * np.sqrt(3.0) / 2.0
     outer = np.array([(0.0, 0.0), (s, 0.0), (s / 2.0, tri_h)])
-    _fill(img, outer, RED)
+    _fill(img, outer, palette.red)
     incentre, inradius = np.array([s / 2.0, tri_h / 3.0]), tri_h / 3.0
     band = 0.155 * s  # red band ~5.5 in wide on a 36 in side
     inner = incentre + (outer - incentre) * (inradius - band) / inradius
-    _fill(img, inner, WHITE)
+    _fill(img, inner, palette.white)
     # Put the legend where the white triangle is still wide: its top third.
     top, side, text_h = inner[0, 1], inner[1, 0] - inner[0, 0], 0.085 * s
     inner_h = side * np.sqrt(3.0) / 2.0
     text_cy = top + 0.08 * inner_h + text_h / 2.0
     width_at_bottom = side * (1.0 - (text_cy + text_h / 2.0 - top) / inner_h)
-    _text(img, "YIELD", RED, (s / 2.0, text_cy), height=text_h, max_width=0.85 * width_at_bottom)
+    _text(img, "YIELD", palette.red, (s / 2.0, text_cy), height=text_h, max_width=0.85 * width_at_bottom)
     return img
 
 
@@ -164,8 +178,8 @@ def _rounded_rect(x0: float, y0: float, x1: float, y1: float, r: float) -> np.nd
     return np.array(pts)
 
 
-def make_speed_limit_sign(limit_kmh: int = 50, width_px: int = 400,
-                          height_px: int = 500) -> np.ndarray:
+def make_speed_limit_sign(limit_kmh: int = 50, width_px: int = 400, height_px: int = 500,
+                          palette: Palette = DESIGN_PALETTE) -> np.ndarray:
     """Speed-limit sign face (MUTCD R2-1) as RGB uint8, shape (height_px, width_px, 3).
 
     The whole image is the sign face, 0.61 m wide by 0.76 m tall (aspect 4:5), x right
@@ -173,14 +187,14 @@ def make_speed_limit_sign(limit_kmh: int = 50, width_px: int = 400,
     "SPEED" / "LIMIT" in the top part and `limit_kmh` large below.
     """
     w, h = float(width_px), float(height_px)
-    img = np.full((height_px, width_px, 3), WHITE, np.uint8)
+    img = np.full((height_px, width_px, 3), palette.white, np.uint8)
     inset, border = 0.02 * w, 0.025 * w
-    _fill(img, _rounded_rect(inset, inset, w - inset, h - inset, 0.06 * w), BLACK)
+    _fill(img, _rounded_rect(inset, inset, w - inset, h - inset, 0.06 * w), palette.black)
     i = inset + border
-    _fill(img, _rounded_rect(i, i, w - i, h - i, 0.06 * w - border), WHITE)
+    _fill(img, _rounded_rect(i, i, w - i, h - i, 0.06 * w - border), palette.white)
     for word, cy in (("SPEED", 0.17), ("LIMIT", 0.35)):
-        _text(img, word, BLACK, (w / 2, cy * h), height=0.12 * h, max_width=0.8 * w)
-    _text(img, str(int(limit_kmh)), BLACK, (w / 2, 0.68 * h), height=0.34 * h, max_width=0.8 * w,
+        _text(img, word, palette.black, (w / 2, cy * h), height=0.12 * h, max_width=0.8 * w)
+    _text(img, str(int(limit_kmh)), palette.black, (w / 2, 0.68 * h), height=0.34 * h, max_width=0.8 * w,
           width=0.3 * w * len(str(int(limit_kmh))), weight=0.09)
     return img
 
@@ -219,7 +233,8 @@ def make_hexagon_advert(word: str = "PIZZA", width_px: int = 512) -> np.ndarray:
     return img
 
 
-SIGN_TEXTURE_MAKERS: dict[str, Callable[[], np.ndarray]] = {
+# Each takes a `palette=` keyword (the design colours by default).
+SIGN_TEXTURE_MAKERS: dict[str, Callable[..., np.ndarray]] = {
     "stop_sign": make_stop_sign, "yield": make_yield_sign, "speed_limit": make_speed_limit_sign}
 CLEAN_TEXTURE_FILES: dict[str, str] = {
     "stop_sign": "stop_sign.png", "yield": "yield.png", "speed_limit": "speed_limit.png"}
