@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import functools
 import os
 import resource
@@ -28,6 +29,19 @@ def study_run():
     cached for the session so several tests can assert on one run."""
     return lambda town, placement, policy, seed=0, perception="oracle", sign="clean": _cached_run(
         town, placement, policy, seed, perception, sign)
+
+
+@pytest.fixture
+def one_local_ray_cluster_at_a_time(tmp_path_factory):
+    """Under pytest-xdist, holds a lock shared by the session's workers while the test runs, so that two
+    tests never start local Ray clusters at once (they would compete for ports, /tmp/ray and both cores)."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        yield
+        return
+    lock_path = tmp_path_factory.getbasetemp().parent / "ray-cluster.lock"  # this session's folder, not the worker's
+    with lock_path.open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
 
 
 # ---- `pytest --cpu-durations=N`: where the suite's CPU time goes --------------------------------
