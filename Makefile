@@ -32,9 +32,13 @@ run-all: $(VENV)/.installed
 quick: $(VENV)/.installed
 	$(PY) -m avsim reproduce --quick
 
+# Both passes share their test files out to two processes (pytest-xdist), so both of the 2-core machine's
+# cores work; a file's tests stay in one process, so its module fixtures are built once. TEST_WORKERS=0
+# runs everything in one process; docs/performance.md has the suite's measured time.
+TEST_WORKERS ?= 2
 test: $(VENV)/.installed
-	$(PY) -m pytest -q
-	$(PY) -m pytest -q -m 'slow and not regen' --durations=20
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(PY) -m pytest -q -m 'slow and not regen' -n $(TEST_WORKERS) --dist loadfile --durations=20
 
 # Every shipped texture made again from its record (about an hour here); `make test` covers one per code path.
 test-regen: $(VENV)/.installed

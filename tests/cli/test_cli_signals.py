@@ -204,6 +204,7 @@ def test_no_pool_worker_outlives_a_killed_sweep(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("one_local_ray_cluster_at_a_time")
 def test_no_ray_worker_outlives_a_killed_sweep(tmp_path):
     pytest.importorskip("ray")
 

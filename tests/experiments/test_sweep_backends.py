@@ -21,6 +21,7 @@ def _without_wall_time(records: list[dict]) -> list[dict]:
 
 
 @pytest.mark.slow  # 20 s: starts a local Ray cluster
+@pytest.mark.usefixtures("one_local_ray_cluster_at_a_time")
 def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(tmp_path):
     pytest.importorskip("ray")
     sweep = load_sweep(SMOKE)
@@ -36,6 +37,7 @@ def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(t
 
 
 @pytest.mark.slow  # 10 s: starts a local Ray cluster
+@pytest.mark.usefixtures("one_local_ray_cluster_at_a_time")
 def test_a_ray_worker_that_dies_is_retried_then_recorded_as_failed_and_the_batch_goes_on(monkeypatch):
     pytest.importorskip("ray")
     from avsim.experiments import batch, ray_backend, run_task
