@@ -114,7 +114,10 @@ def test_the_attack_experiment_files_load_with_their_seeds():
 def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_under_both_detectors():
     """Issue 14: closed-loop success per texture and detector, in Town07 standard and the other 8 cells."""
     budget_points = {"yang_eps0.09", "yang_eps0.18"}  # yang at smaller budgets: the safety map's axis, not attacks
-    shipped = {"clean"} | {p.stem for p in (ROOT / "textures").glob("*.json")} - budget_points
+    # Made against all three networks (issue 29): its closed loop is the three-network board's
+    # (experiments/leaderboards/three_networks.toml), where the networks it targets perceive.
+    three_networks = {"driveby_ensemble_all"}
+    shipped = {"clean"} | {p.stem for p in (ROOT / "textures").glob("*.json")} - budget_points - three_networks
     assert len(shipped) == 15
     for name, kind, places in (("success_town07.toml", "detector", 1), ("success_towns.toml", "detector", 8),
                                ("success_coco.toml", "coco", 1), ("success_coco_towns.toml", "coco", 8)):

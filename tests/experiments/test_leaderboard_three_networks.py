@@ -1,0 +1,58 @@
+"""The three-network board (`experiments/leaderboards/three_networks.toml`, issue 29): its plan, checked
+without running it. Its runs cost 60-100 s of CPU each here, so it is run by name only and never by the
+quick test of the default board (tests/experiments/test_leaderboard.py)."""
+
+import json
+
+import pytest
+
+from avsim.experiments.leaderboard import DEFAULT_FILE, SAFETY, load_leaderboard, unique_specs
+from avsim.experiments.run_task import config_hash
+from avsim.world.textures import TEXTURE_DIR
+
+THREE_NETWORKS = DEFAULT_FILE.parent / "three_networks.toml"
+NEW_ROWS = ("ensemble3_or", "ensemble3_2of3")
+REFERENCES = ("baseline", "ensemble_or")
+
+
+@pytest.fixture(scope="module")
+def boards():
+    return load_leaderboard(THREE_NETWORKS), load_leaderboard(DEFAULT_FILE)
+
+
+def test_the_new_rows_run_all_three_networks_each_fusion_against_the_texture_made_against_all_three(boards):
+    board, _ = boards
+    assert [d.name for d in board.defences] == [*REFERENCES, *NEW_ROWS]
+    fusions = {}
+    for run in board.runs(first_seed_only=True):
+        if run.defence in NEW_ROWS:
+            perception = run.config.perception
+            assert perception.kind == "ensemble" and perception.ensemble_members == ("detector", "coco", "yolo")
+            fusions[run.defence] = (perception.ensemble_fusion, perception.ensemble_k if perception.ensemble_fusion == "k_of_n" else None)
+            if run.kind == SAFETY and run.condition == "adaptive":
+                assert run.config.scenario.sign == "driveby_ensemble_all"
+    assert fusions == {"ensemble3_or": ("or", None), "ensemble3_2of3": ("k_of_n", 2)}
+    record = json.loads((TEXTURE_DIR / "driveby_ensemble_all.json").read_text())
+    assert record["detector"] == "ensemble_all" and {"yolov3-tiny.weights", "centernet.bin"} <= set(record["weights_sha256"])
+
+
+def test_the_references_are_the_default_boards_rows_run_for_run(boards):
+    """Same configs, same seeds: the two boards' rows compare like for like (and share results by hash)."""
+    board, default = boards
+
+    def hashes(b, name):
+        return sorted(config_hash(r.config) for r in b.runs() if r.defence == name)
+
+    for name in REFERENCES:
+        assert hashes(board, name) == hashes(default, name), name
+    assert [p.label for p in board.places] == [p.label for p in default.places]
+    assert board.size(quick=True) == 4 * 5 and len(list(unique_specs(board, board.runs(quick=True)))) == 20
+
+
+def test_the_default_board_runs_no_three_network_ensemble(boards):
+    """`avsim leaderboard` (and CI's quick test of it) keeps its cost: no run of it has YOLOv3-tiny."""
+    _, default = boards
+    def runs_yolo(perception) -> bool:
+        return perception.kind == "yolo" or (perception.kind == "ensemble" and "yolo" in perception.ensemble_members)
+
+    assert not any(runs_yolo(r.config.perception) for r in default.runs())
