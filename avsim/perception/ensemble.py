@@ -22,9 +22,12 @@ it; each detection is tagged with its network (`Detection.source`). Fusion
   weaker network. The other classes, which no policy acts on, are reported as each network
   reports them (COCO has no yield or speed-limit class).
 - "k_of_n": a stop sign is reported where at least `perception.ensemble_k` members report one
-  on the same object, fused as for "and" (the box of the earliest member in the group, the
-  lowest confidence in it, the members joined by "+"). k = 1 is one detection per object
-  instead of OR's one per network; k = n is "and".
+  on the same object, with the box of the earliest member in the group, the members joined by
+  "+", and the k-th highest confidence in the group: then the fused sign clears a policy's
+  threshold exactly when k members' own detections do. (The lowest confidence, as "and" takes,
+  would let a third member's weak box veto two members that see the sign clearly.) k = 1 is
+  one detection per object, at its best member's confidence, instead of OR's one per network;
+  k = n is "and".
 """
 
 from __future__ import annotations
@@ -55,7 +58,8 @@ def fuse_votes(per_source: Mapping[str, list[Detection]], votes: int) -> list[De
 
     Each stop sign of each member, in member order, anchors a group: the most confident stop
     sign of every later member on the same object (centres inside each other). A group of at
-    least `votes` members is reported once; its detections anchor nothing more.
+    least `votes` members is reported once, at its `votes`-th highest confidence (for "and",
+    its lowest); its detections anchor nothing more.
     """
     names = list(per_source)
     used: set[tuple[str, int]] = set()
@@ -74,8 +78,9 @@ def fuse_votes(per_source: Mapping[str, list[Detection]], votes: int) -> list[De
             if len(group) < votes:
                 continue
             used |= {(member, j) for member, j, _ in group}
+            kth_highest = sorted((d.confidence for _, _, d in group), reverse=True)[votes - 1]
             fused.append(dataclasses.replace(
-                det, confidence=min(d.confidence for _, _, d in group),
+                det, confidence=kth_highest,
                 truncated=any(d.truncated for _, _, d in group), source="+".join(member for member, _, _ in group)))
     rest = [d for name in names for d in per_source[name] if d.class_name != STOP_CLASS]
     return sorted(fused + rest, key=lambda d: -d.confidence)

@@ -73,13 +73,21 @@ def test_k_of_n_reports_an_object_once_when_enough_members_see_it():
     per_source = {"detector": [box(10, 10, 30, 30, 0.9)],
                   "coco": [box(11, 9, 31, 31, 0.6), box(50, 50, 70, 70, 0.8)],
                   "yolo": [box(12, 11, 29, 30, 0.7), box(51, 49, 71, 69, 0.5), box(90, 0, 99, 9, 0.95)]}
-    two = fuse_votes(per_source, 2)
+    two = fuse_votes(per_source, 2)  # each object at its second vote's confidence
     assert [(d.source, d.confidence, d.box_xyxy_px) for d in two] == [
-        ("detector+coco+yolo", 0.6, (10, 10, 30, 30)), ("coco+yolo", 0.5, (50, 50, 70, 70))]
-    assert [d.source for d in fuse_votes(per_source, 3)] == ["detector+coco+yolo"]
-    one = fuse_votes(per_source, 1)  # every object once, however many members saw it
-    assert sorted(d.source for d in one) == ["coco+yolo", "detector+coco+yolo", "yolo"]
+        ("detector+coco+yolo", 0.7, (10, 10, 30, 30)), ("coco+yolo", 0.5, (50, 50, 70, 70))]
+    assert [(d.source, d.confidence) for d in fuse_votes(per_source, 3)] == [("detector+coco+yolo", 0.6)]
+    one = fuse_votes(per_source, 1)  # every object once, however many members saw it, at its best
+    assert sorted((d.source, d.confidence) for d in one) == [
+        ("coco+yolo", 0.8), ("detector+coco+yolo", 0.9), ("yolo", 0.95)]
     assert fuse_and(per_source) == fuse_votes(per_source, 3)
+
+
+def test_two_of_three_is_not_vetoed_by_a_third_members_weak_box():
+    per_source = {"detector": [box(10, 10, 30, 30, 0.9)], "coco": [box(11, 9, 31, 31, 0.85)],
+                  "yolo": [box(14, 14, 26, 26, 0.15)]}  # YOLOv3-tiny's small box on the legend
+    assert [(d.source, d.confidence) for d in fuse_votes(per_source, 2)] == [("detector+coco+yolo", 0.85)]
+    assert [d.confidence for d in fuse_votes(per_source, 3)] == [0.15]
 
 
 def test_k_of_n_through_the_detector_and_its_config_checks():
