@@ -81,8 +81,9 @@ def test_clusters_lie_inside_the_envelope_with_gaps_at_the_stated_porosity(crown
     assert horizontal_radius_m.min() >= min(foliage.CLUSTER_RADIUS_M[0], 0.4 * crown.semi_axes_m.min()) - 1e-9
     assert horizontal_radius_m.max() <= foliage.CLUSTER_RADIUS_M[1] + 1e-9
     for azimuth in foliage.VIEW_AZIMUTHS_DEG:
-        # Drawing stops at the first cluster that closes the gaps to the target, so just under it.
-        assert 0.12 < foliage.silhouette_porosity(crown, clusters, foliage.horizontal_view(azimuth)) <= foliage.CROWN_POROSITY
+        # Drawing stops at the first cluster that closes the gaps to the target in the last open view, so the
+        # crown is at the target or below it, but not closed (the towns' crowns: 0.118-0.19).
+        assert 0.08 < foliage.silhouette_porosity(crown, clusters, foliage.horizontal_view(azimuth)) <= foliage.CROWN_POROSITY
     # Between the judged views, and from above, the background still shows through (but not through most of it).
     for view in (foliage.horizontal_view(20.0), foliage.horizontal_view(70.0), np.array([0.0, 0.0, 1.0])):
         assert 0.08 < foliage.silhouette_porosity(crown, clusters, view) < 0.35
