@@ -16,8 +16,8 @@ Physical figures:
   assumed scale, not a measured one.
 - Leaves grow into light, so a crown's foliage spreads over its gaps rather than piling up behind
   itself. Each cluster is therefore the best of CANDIDATES places drawn at random: the one that covers
-  the most of the silhouette still open. (With one candidate, a Boolean model, a 7 m tree needs about
-  three times as many clusters for the same porosity, most of them hidden behind others.)
+  the most of the silhouette still open. (With one candidate, a Boolean model, the towns' 5-12 m trees
+  need 3-4 times as many clusters for the same porosity, most of them hidden behind others.)
 None of these was searched for a detector's score.
 
 A cluster is a small copy of its crown's envelope (the same proportions), k = r / a_min of its size,
