@@ -47,6 +47,8 @@ MATERIALS = ("flat", "textured")
 # Values of ScenarioConfig.sign_materials (world/sign_materials.py) and .sun_shadow_map_px (world/scene.py; 0: no shadow).
 SIGN_MATERIALS = ("flat", "sheeting")
 SHADOW_MAP_SIZES_PX = (0, 1024, 2048, 4096, 8192)
+# Values of ScenarioConfig.foliage (world/foliage.py).
+FOLIAGES = ("solid", "clusters")
 # A stop sign turned at most this far from facing the car is for the car; one turned at least
 # SIGN_YAW_NOT_OURS_DEG faces the cross street. In between it is ambiguous, and refused.
 SIGN_YAW_FACING_DEG = 30.0
@@ -127,12 +129,17 @@ class ScenarioConfig:
     sign_materials: str = "flat"
     # The sun's shadows: 0, none (the default renders); else the side of the shadow map [texels].
     sun_shadow_map_px: int = 0
+    # Tree crowns: "solid", one opaque ellipsoid each (the default renders); "clusters", leaf clusters
+    # filling the same envelope with gaps, at a broadleaf crown's optical porosity (world/foliage.py,
+    # docs/realism.md).
+    foliage: str = "solid"
 
     def __post_init__(self) -> None:
         check_ranges(self, "scenario")
         _require(self.materials in MATERIALS, f"scenario.materials must be one of {', '.join(MATERIALS)}, got {self.materials!r}")
         _require(self.sign_materials in SIGN_MATERIALS,
                  f"scenario.sign_materials must be one of {', '.join(SIGN_MATERIALS)}, got {self.sign_materials!r}")
+        _require(self.foliage in FOLIAGES, f"scenario.foliage must be one of {', '.join(FOLIAGES)}, got {self.foliage!r}")
         _require(type(self.sun_shadow_map_px) is int and self.sun_shadow_map_px in SHADOW_MAP_SIZES_PX,
                  f"scenario.sun_shadow_map_px must be one of {', '.join(map(str, SHADOW_MAP_SIZES_PX))} (0: no shadows), "
                  f"got {self.sun_shadow_map_px!r}")

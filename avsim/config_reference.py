@@ -44,6 +44,7 @@ CHOICES: dict[str, Any] = {
     "scenario.map_error": config_module.MAP_ERRORS,
     "scenario.materials": config_module.MATERIALS,
     "scenario.sign_materials": config_module.SIGN_MATERIALS,
+    "scenario.foliage": config_module.FOLIAGES,
     "scenario.sun_shadow_map_px": config_module.SHADOW_MAP_SIZES_PX,
     "camera.preset": tuple(config_module.CAMERA_PRESETS),
     "camera.offsamples": config_module.OFFSAMPLES,

@@ -17,7 +17,7 @@ import numpy as np
 from avsim.config import NO_SIGN, CameraConfig, SimConfig, VehicleConfig
 from avsim.errors import ConfigError
 from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
-from avsim.world import props
+from avsim.world import foliage, props
 from avsim.world.distractors import add_red_signs
 from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
 from avsim.world import sign_materials
@@ -124,6 +124,8 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     add_road(spec, town.layout, stop_line=scenario.stop_required)
     rng = np.random.default_rng(scenario.layout_seed)
     extra_signs = town.build_scenery(spec, town.layout, rng)
+    if scenario.foliage == "clusters":
+        foliage.replace_crowns_with_clusters(spec, scenario.layout_seed)
     if scenario.distractors == "red_signs":
         add_red_signs(spec, town.layout)
 
