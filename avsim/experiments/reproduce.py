@@ -55,9 +55,9 @@ MORE_EXPERIMENTS = ("sensitivity", "coco_detector", "table3_coco", "attacks/succ
                     "attacks/range_inflation_adjusted", "attacks/driveby_detector_town07", "attacks/success_coco",
                     "attacks/success_coco_towns", "attacks/sensitivity_coco_town10")
 # The YOLOv3-tiny files, run by name (`--experiments`): YOLOv3-tiny is avsim's slowest perception (0.1-0.2x
-# real time a run on this CPU; docs/yolo.md), and these 390 runs would add hours to `--all`.
-YOLO_EXPERIMENTS = ("yolo_detector", "table3_yolo", "attacks/success_yolo", "attacks/success_yolo_towns",
-                    "attacks/sensitivity_yolo_town03")
+# real time a run on this CPU; docs/yolo.md), and these 415 runs would add hours to `--all`.
+YOLO_EXPERIMENTS = ("yolo_detector", "table3_yolo", "table3_yolo_clusters", "attacks/success_yolo",
+                    "attacks/success_yolo_towns", "attacks/sensitivity_yolo_town03")
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,

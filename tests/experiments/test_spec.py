@@ -37,15 +37,17 @@ SHIPPED = {
 }
 # Table III under the two COCO-trained networks: the same cells as the own detector's
 SHIPPED["table3_coco.toml"] = SHIPPED["table3_yolo.toml"] = SHIPPED["table3_stop_positions.toml"]
+SHIPPED["table3_yolo_clusters.toml"] = SHIPPED["table3_stop_positions.toml"]
 # file name -> the report section it declares
 REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
                "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
                "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare", "sensitivity.toml": "sensitivity",
                "coco_detector.toml": "stop_rates", "yolo_detector.toml": "stop_rates",
-               "table3_coco.toml": "table3", "table3_yolo.toml": "table3"}
+               "table3_coco.toml": "table3", "table3_yolo.toml": "table3",
+               "table3_yolo_clusters.toml": "table3"}
 # file name -> the perception its runs see through (avsim's own detector where not named)
 PERCEPTION_KIND = {"coco_detector.toml": "coco", "yolo_detector.toml": "yolo", "table3_coco.toml": "coco",
-                   "table3_yolo.toml": "yolo"}
+                   "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo"}
 # files whose cells cover every town and placement (the rest are Town07 standard)
 EVERY_PLACE = ("coco_detector.toml", "yolo_detector.toml")
 EVERY_TOWN_AND_PLACEMENT = [(town, placement) for town in ("town03", "town07", "town10") for placement in ("near", "standard", "far")]
