@@ -2,6 +2,7 @@
 distance, first confident detection and its delay, closed-loop success with its Wilson interval,
 and the report section that shows them."""
 
+import json
 from pathlib import Path
 
 import pytest
@@ -99,7 +100,10 @@ def test_the_attack_experiment_files_load_with_their_seeds():
                 "driveby_detector_town07.toml": (20, "attack_success"),
                 "sensitivity_coco_town10.toml": (5, "sensitivity"),
                 "success_yolo.toml": (20, "attack_success"), "success_yolo_towns.toml": (5, "attack_success"),
-                "sensitivity_yolo_town03.toml": (5, "sensitivity")}
+                "sensitivity_yolo_town03.toml": (5, "sensitivity"),
+                "success_yolo_textures.toml": (20, "attack_success"),
+                "success_yolo_textures_town07.toml": (5, "attack_success"),
+                "success_yolo_textures_towns.toml": (5, "attack_success"), "driveby_yolo.toml": (10, "attack_success")}
     assert sorted(p.name for p in ATTACK_EXPERIMENTS.glob("*.toml")) == sorted(expected)
     for name, (seeds, report) in expected.items():
         experiment = load_experiment(ATTACK_EXPERIMENTS / name)
@@ -117,7 +121,9 @@ def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_un
     # Made against all three networks (issue 29): its closed loop is the three-network board's
     # (experiments/leaderboards/three_networks.toml), where the networks it targets perceive.
     three_networks = {"driveby_ensemble_all"}
-    shipped = {"clean"} | {p.stem for p in (ROOT / "textures").glob("*.json")} - budget_points - three_networks
+    # Made against YOLOv3-tiny alone: its closed loop is under YOLOv3-tiny (driveby_yolo.toml).
+    yolo_only = {"driveby_yolo"}
+    shipped = {"clean"} | {p.stem for p in (ROOT / "textures").glob("*.json")} - budget_points - three_networks - yolo_only
     assert len(shipped) == 15
     for name, kind, places in (("success_town07.toml", "detector", 1), ("success_towns.toml", "detector", 8),
                                ("success_coco.toml", "coco", 1), ("success_coco_towns.toml", "coco", 8)):
@@ -147,6 +153,39 @@ def test_the_yolo_transfer_files_pair_the_clean_sign_with_the_own_detectors_driv
         assert all(signs == {"clean", "driveby_detector"} for signs in signs_by_place.values())
         places_seen |= set(signs_by_place)
     assert len(places_seen) == 9
+
+
+def test_the_yolo_texture_files_pair_every_texture_made_against_the_own_detector_with_the_clean_sign():
+    """Issue 29: does any texture made against avsim's own detector make baseline run the sign under
+    YOLOv3-tiny? Every such texture, 20 seeds in Town07 standard and 5 in each other cell, in one precision."""
+    own = {p.stem for p in (ROOT / "textures").glob("*.json") if json.loads(p.read_text())["detector"] == "detector"}
+    assert len(own) == 14
+    places_seen = set()
+    for name, seeds, places in (("success_yolo_textures.toml", 20, 1), ("success_yolo_textures_town07.toml", 5, 2),
+                                ("success_yolo_textures_towns.toml", 5, 6)):
+        experiment = load_experiment(ATTACK_EXPERIMENTS / name)
+        assert experiment.seeds == seeds
+        assert {(c.config.perception.kind, c.config.perception.yolo_precision, c.config.policy.name)
+                for c in experiment.cells} == {("yolo", "bf16", "baseline")}
+        signs_by_place: dict = {}
+        for c in experiment.cells:
+            signs_by_place.setdefault((c.config.scenario.town, c.config.scenario.placement), set()).add(c.config.scenario.sign)
+        assert len(signs_by_place) == places
+        assert all(signs == own | {"clean"} for signs in signs_by_place.values()), name
+        places_seen |= set(signs_by_place)
+    assert len(places_seen) == 9 and ("town07", "standard") in places_seen
+
+
+def test_the_texture_made_against_yolo_is_paired_with_the_clean_sign_at_the_gate_and_without_it():
+    """driveby_yolo's closed loop: Town07 standard at the 40 m gate, and Town03 near without a gate, where
+    YOLOv3-tiny's legend box does not already run the clean sign past."""
+    experiment = load_experiment(ATTACK_EXPERIMENTS / "driveby_yolo.toml")
+    cells = {(c.config.scenario.sign, c.config.scenario.town, c.config.scenario.placement, c.config.policy.trigger_dist_m)
+             for c in experiment.cells}
+    assert cells == {(sign, *place) for sign in ("clean", "driveby_yolo")
+                     for place in (("town07", "standard", 40.0), ("town03", "near", None))}  # inf: no gate
+    assert {(c.config.perception.kind, c.config.policy.name) for c in experiment.cells} == {("yolo", "baseline")}
+    assert json.loads((ROOT / "textures" / "driveby_yolo.json").read_text())["detector"] == "yolo"
 
 
 def test_a_texture_source_names_its_detector_and_the_purification_it_went_through():
