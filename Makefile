@@ -23,8 +23,8 @@ $(VENV)/.installed: pyproject.toml
 run: $(VENV)/.installed
 	$(PY) -m avsim reproduce
 
-# Everything: the study, the sensitivity, the COCO network's closed loop and the attack-success files
-# (2500 runs: hours on 2 cores). The leaderboard is `avsim leaderboard`.
+# Everything: the study, the adaptive attacker and the wet road, the sensitivity, the COCO network's closed
+# loop and the attack-success files (2525 runs: hours on 2 cores). The leaderboard is `avsim leaderboard`.
 run-all: $(VENV)/.installed
 	$(PY) -m avsim reproduce --all
 
