@@ -115,6 +115,14 @@ def test_the_attack_experiment_files_load_with_their_seeds():
         assert len(cells) == 8 and ("town07", "standard") not in cells
 
 
+def signs_by_place(experiment) -> dict[tuple[str, str], set[str]]:
+    """(town, placement) -> the signs an experiment file's cells put there."""
+    places: dict[tuple[str, str], set[str]] = {}
+    for c in experiment.cells:
+        places.setdefault((c.config.scenario.town, c.config.scenario.placement), set()).add(c.config.scenario.sign)
+    return places
+
+
 def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_under_both_detectors():
     """Issue 14: closed-loop success per texture and detector, in Town07 standard and the other 8 cells."""
     budget_points = {"yang_eps0.09", "yang_eps0.18"}  # yang at smaller budgets: the safety map's axis, not attacks
@@ -130,12 +138,9 @@ def test_the_attack_success_files_measure_every_shipped_texture_in_every_cell_un
         experiment = load_experiment(ATTACK_EXPERIMENTS / name)
         assert {c.config.perception.kind for c in experiment.cells} == {kind}
         assert {c.config.policy.name for c in experiment.cells} == {"baseline"}
-        signs_by_place: dict = {}
-        for c in experiment.cells:
-            place = (c.config.scenario.town, c.config.scenario.placement)
-            signs_by_place.setdefault(place, set()).add(c.config.scenario.sign)
-        assert len(signs_by_place) == places, name
-        assert all(signs == shipped for signs in signs_by_place.values()), name
+        signs = signs_by_place(experiment)
+        assert len(signs) == places, name
+        assert all(at_place == shipped for at_place in signs.values()), name
 
 
 def test_the_yolo_transfer_files_pair_the_clean_sign_with_the_own_detectors_drive_by_texture_in_every_cell():
@@ -146,12 +151,10 @@ def test_the_yolo_transfer_files_pair_the_clean_sign_with_the_own_detectors_driv
         experiment = load_experiment(ATTACK_EXPERIMENTS / name)
         assert {c.config.perception.kind for c in experiment.cells} == {"yolo"}
         assert {c.config.policy.name for c in experiment.cells} == {"baseline"}
-        signs_by_place: dict = {}
-        for c in experiment.cells:
-            signs_by_place.setdefault((c.config.scenario.town, c.config.scenario.placement), set()).add(c.config.scenario.sign)
-        assert len(signs_by_place) == places
-        assert all(signs == {"clean", "driveby_detector"} for signs in signs_by_place.values())
-        places_seen |= set(signs_by_place)
+        signs = signs_by_place(experiment)
+        assert len(signs) == places
+        assert all(at_place == {"clean", "driveby_detector"} for at_place in signs.values())
+        places_seen |= set(signs)
     assert len(places_seen) == 9
 
 
@@ -167,12 +170,10 @@ def test_the_yolo_texture_files_pair_every_texture_made_against_the_own_detector
         assert experiment.seeds == seeds
         assert {(c.config.perception.kind, c.config.perception.yolo_precision, c.config.policy.name)
                 for c in experiment.cells} == {("yolo", "bf16", "baseline")}
-        signs_by_place: dict = {}
-        for c in experiment.cells:
-            signs_by_place.setdefault((c.config.scenario.town, c.config.scenario.placement), set()).add(c.config.scenario.sign)
-        assert len(signs_by_place) == places
-        assert all(signs == own | {"clean"} for signs in signs_by_place.values()), name
-        places_seen |= set(signs_by_place)
+        signs = signs_by_place(experiment)
+        assert len(signs) == places
+        assert all(at_place == own | {"clean"} for at_place in signs.values()), name
+        places_seen |= set(signs)
     assert len(places_seen) == 9 and ("town07", "standard") in places_seen
 
 
