@@ -47,7 +47,7 @@ from avsim.metrics import write_json_atomic
 EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
 # `avsim reproduce` (`make run`): the study's tables and figure, report order; 105 runs. Issue 25 gives
 # `make run` 12 minutes on a 2-core machine: these four files need about 20 CPU-minutes (docs/reproducing.md),
-# and the two additions that ran here before (the adaptive attacker and the wet road, 70 runs and about 13
+# and the two additions that ran here before (the adaptive attacker and the wet road, 70 runs and about 12.5
 # CPU-minutes more) did not fit, so they moved to `--all`.
 STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_attacked_defended", "fig3_detection")
 # `avsim reproduce --all` adds every other experiment file: the additions beyond the study, the constant
