@@ -42,7 +42,7 @@ from avsim.attacks.hyperparameters import check_hyperparameter_values
 from avsim.attacks.photometric import CLOSED_LOOP_PHOTOMETRIC, PhotometricRanges
 from avsim.attacks.registry import ATTACKS
 from avsim.attacks.sign_view import face_alpha
-from avsim.attacks.targets import TARGET_NAMES, build_target, purified, sha256_file
+from avsim.attacks.targets import TARGET_MEMBERS, TARGET_NAMES, build_target, purified, sha256_file
 from avsim.attacks.view_bank import ViewBankSpec, build_view_bank, closed_loop_bank_spec
 from avsim.config import PerceptionConfig, check_seed
 from avsim.errors import ConfigError
@@ -376,13 +376,14 @@ def check_weights(recipe: Recipe, weights_path: str = "") -> None:
 
     expected = {name: digest for name, digest in recipe.weight_hashes.items() if digest}
     actual = {}
-    if recipe.detector in ("detector", "ensemble", "ensemble_all"):
+    members = TARGET_MEMBERS[recipe.detector]
+    if "detector" in members:
         path = resolve_weights_path(weights_path)
         actual[path.name] = sha256_file(path)
-    if recipe.detector in ("coco", "ensemble", "ensemble_all"):
+    if "coco" in members:
         json_path, bin_path = fetch.model_paths()
         actual[json_path.name], actual[bin_path.name] = sha256_file(json_path), sha256_file(bin_path)
-    if recipe.detector in ("yolo", "ensemble_all"):
+    if "yolo" in members:
         actual |= {path.name: sha256_file(path) for path in yolo_fetch.model_paths()}
     different = sorted(name for name, digest in expected.items() if actual.get(name, digest) != digest)
     if different:

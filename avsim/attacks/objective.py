@@ -19,6 +19,7 @@ Against a k-of-n temporal vote the decision is a window's k-th best frame
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import torch
@@ -97,6 +98,25 @@ def soft_maximum(values: torch.Tensor, temperature: float) -> torch.Tensor:
     # its digits when t is large and every term is near 1 (the plain form cancels there).
     top = values.amax(dim=-1, keepdim=True)
     return top.squeeze(-1) + temperature * torch.log1p(torch.expm1((values - top) / temperature).mean(dim=-1))
+
+
+def soft_kth_largest(values: torch.Tensor, k: int, temperature: float) -> torch.Tensor:
+    """A smooth k-th largest of the last axis of `values` (..., N): the soft maximum, over every
+    k of the N, of their soft minimum; shape (...). k = 1 is `soft_maximum` itself.
+
+    The k-th largest of N is the largest minimum over the subsets of size k, so this is what a
+    k-of-N vote reports (the k-th highest confidence) made smooth: a step lowers it by working on
+    the k best values together rather than on the best one alone. The subsets are enumerated,
+    which suits the few members of a network ensemble (3 of them give 3 pairs).
+    """
+    count = values.shape[-1]
+    if not 1 <= k <= count:
+        raise ValueError(f"k must be in [1, {count}], got {k}")
+    if k == 1:
+        return soft_maximum(values, temperature)
+    subsets = torch.tensor(list(itertools.combinations(range(count), k)), device=values.device)  # (C, k)
+    members = values[..., subsets]  # (..., C, k)
+    return soft_maximum(-soft_maximum(-members, temperature), temperature)
 
 
 def gate_weight(estimate_m: torch.Tensor, trigger_dist_m: float | None, softness_m: float) -> torch.Tensor:

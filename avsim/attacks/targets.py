@@ -16,7 +16,11 @@ differentiable in the pixels:
 - `ensemble`: avsim's detector and coco; a view's score is a soft maximum of the two, so a
   step works on whichever detector still sees the sign, and the box height is their
   geometric mean;
-- `ensemble_all`: the same over all three networks (detector, coco, yolo).
+- `ensemble_all`: the same over all three networks (detector, coco, yolo);
+- `ensemble_all_2of3`: all three networks, a view's score the soft second-largest of their
+  scores (`objective.soft_kth_largest`): what the 2-of-3 fusion (`perception.ensemble_fusion =
+  k_of_n`, `ensemble_k = 2`) reports, so a step works on hiding the sign from two networks at
+  once, which is all that vote needs, rather than from the one that sees it best.
 
 Any of them can sit behind the perception's input purification (`perception.purify`, a
 defence): `PurifiedTarget` runs the deployed JPEG codec or median filter on the views in the
@@ -35,8 +39,8 @@ from typing import Protocol
 import torch
 
 from avsim.attacks.bpda import TensorFn, purifier_layer
-from avsim.attacks.objective import (StopEvidence, cells_near_boxes, masked_max, reported_height_px, soft_maximum,
-                                     stop_evidence)
+from avsim.attacks.objective import (StopEvidence, cells_near_boxes, masked_max, reported_height_px, soft_kth_largest,
+                                     soft_maximum, stop_evidence)
 from avsim.config import PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.perception.coco.labels import STOP_SIGN_CLASS_ID
@@ -45,7 +49,11 @@ from avsim.perception.detector.model import SignDetector
 from avsim.perception.yolo.preprocess import resize_bilinear
 from avsim.perception.yolo.infer import avsim_class_name
 
-TARGET_NAMES = ("detector", "coco", "yolo", "ensemble", "ensemble_all")
+# Each target's networks, and for an ensemble how many of them must see the sign (its vote's k).
+TARGET_MEMBERS = {"detector": ("detector",), "coco": ("coco",), "yolo": ("yolo",), "ensemble": ("detector", "coco"),
+                  "ensemble_all": ("detector", "coco", "yolo"), "ensemble_all_2of3": ("detector", "coco", "yolo")}
+TARGET_VOTE_K = {"ensemble_all_2of3": 2}
+TARGET_NAMES = tuple(TARGET_MEMBERS)
 # A CenterNet cell predicts the object whose centre it holds; cells this far outside the sign's
 # box [crop px] are left to the attack too, as for the own detector's cells.
 NEAR_MARGIN_PX = 8.0
@@ -201,24 +209,31 @@ class YoloTarget:
 
 
 class EnsembleTarget:
-    """Several targets at once; see the module docstring."""
+    """Several targets at once; see the module docstring. `vote_k`: how many members must see the
+    sign (1: any of them, the OR fusion)."""
 
     name = "ensemble"
 
-    def __init__(self, targets: list) -> None:
+    def __init__(self, targets: list, vote_k: int = 1) -> None:
+        if not 1 <= vote_k <= len(targets):
+            raise ValueError(f"vote_k must be in [1, {len(targets)}], got {vote_k}")
         self.targets = targets
+        self.vote_k = vote_k
 
     def evidence(self, images: torch.Tensor, sign_boxes_px: torch.Tensor) -> StopEvidence:
-        """Each member's evidence of `images` (B, 3, H, W) combined: a soft maximum of the scores,
-        the largest class logit, the geometric mean of the box heights [view px]; each field (B,)."""
+        """Each member's evidence of `images` (B, 3, H, W) combined: a soft `vote_k`-th largest of
+        the scores (a soft maximum for 1), the `vote_k`-th largest class logit, the geometric mean
+        of the box heights [view px]; each field (B,)."""
         parts = [target.evidence(images, sign_boxes_px) for target in self.targets]
 
         def combine(field: str) -> torch.Tensor:
-            return soft_maximum(torch.stack([getattr(p, field) for p in parts], dim=-1), ENSEMBLE_TEMPERATURE)
+            return soft_kth_largest(torch.stack([getattr(p, field) for p in parts], dim=-1), self.vote_k,
+                                    ENSEMBLE_TEMPERATURE)
 
         heights = torch.exp(torch.stack([torch.log(p.box_height_px.clamp(min=0.5)) for p in parts]).mean(dim=0))
+        logits = torch.stack([p.class_logit for p in parts], dim=-1)
         return StopEvidence(combine("score"), combine("objectness"), combine("class_prob"),
-                            torch.stack([p.class_logit for p in parts]).amax(dim=0), heights)
+                            logits.topk(self.vote_k, dim=-1).values[..., -1], heights)
 
     def weight_hashes(self) -> dict[str, str]:
         """Every member's weight files' names -> their sha256."""
@@ -279,13 +294,9 @@ def build_target(name: str, weights_path: str = "") -> Target:
 
         return YoloTarget(load_yolo())
 
-    if name == "detector":
-        return own()
-    if name == "coco":
-        return coco()
-    if name == "yolo":
-        return yolo()
-    if name == "ensemble":
-        return EnsembleTarget([own(), coco()])
-    return EnsembleTarget([own(), coco(), yolo()])
+    build = {"detector": own, "coco": coco, "yolo": yolo}
+    members = [build[member]() for member in TARGET_MEMBERS[name]]
+    if len(members) == 1:
+        return members[0]
+    return EnsembleTarget(members, TARGET_VOTE_K.get(name, 1))
 

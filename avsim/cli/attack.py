@@ -135,7 +135,8 @@ def add_commands(sub) -> None:
                           "method, hyperparameters, seed, detector, view bank and budget")
     gen.add_argument("--detector", help="the detector the texture is optimised against: detector (avsim's own, the "
                                         "default), coco (the COCO CenterNet port), yolo (YOLOv3-tiny), ensemble (detector "
-                                        "and coco at once) or ensemble_all (all three at once)")
+                                        "and coco at once), ensemble_all (all three at once) or ensemble_all_2of3 (all three, "
+                                        "scored as the 2-of-3 vote reports: the second-highest)")
     gen.add_argument("--seed", type=SEED_FLAG)
     gen.add_argument("--steps", type=STEPS_FLAG, help="optimisation steps (default: the method's)")
     gen.add_argument("--views-per-step", type=number_flag(1, 1000, integer=True), help="EOT views per step (default: the method's)")

@@ -113,7 +113,7 @@ def test_the_yolo_and_three_network_targets_score_the_clean_sign_and_pass_gradie
     group = drive_by_bank.groups[0]
     views = group[len(group) // 2: len(group) // 2 + 2]  # about 30 m
     true_height = drive_by_bank.true_height_px[torch.as_tensor(views)]
-    for name in ("yolo", "ensemble_all"):
+    for name in ("yolo", "ensemble_all", "ensemble_all_2of3"):
         scene = EotScene(drive_by_bank, build_target(name), CLOSED_LOOP_PHOTOMETRIC)
         texture = clean_small.clone().requires_grad_(True)
         evidence = scene.evidence_of(texture, views, torch.Generator().manual_seed(0))

@@ -142,6 +142,7 @@ def test_the_three_network_target_names_every_weight_file_and_a_regeneration_che
     hashes = build_target("ensemble_all").weight_hashes()
     assert set(hashes) == {"sign_detector.pt", "centernet.json", "centernet.bin", "yolov3-tiny.cfg",
                            "yolov3-tiny.weights", "coco.names"}
+    assert build_target("ensemble_all_2of3").weight_hashes() == hashes
     recipe = type("Recipe", (), {"detector": "yolo", "weight_hashes": {**hashes, "yolov3-tiny.weights": "0" * 64}})()
     with pytest.raises(ConfigError, match="yolov3-tiny.weights"):
         generate.check_weights(recipe)

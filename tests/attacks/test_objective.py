@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from avsim.attacks.objective import (BOX_SCORE_TEMPERATURE, driveby_objective, gate_weight, kth_largest_in_windows,
-                                     log_height_ratio, soft_maximum, stop_evidence)
+                                     log_height_ratio, soft_kth_largest, soft_maximum, stop_evidence)
 from avsim.perception.detector.boxes import cell_centres
 
 
@@ -19,6 +19,24 @@ def test_soft_maximum_lies_between_the_mean_it_replaces_and_the_maximum(seed):
     # Cold, it is the maximum; hot, the mean.
     assert float(soft_maximum(values, 1e-4)) == pytest.approx(float(values.max()), abs=1e-3)
     assert float(soft_maximum(values, 1e4)) == pytest.approx(float(values.mean()), abs=1e-4)
+
+
+def test_soft_kth_largest_is_what_a_k_of_n_vote_reports_made_smooth():
+    # Three networks' scores for two views: the own detector hidden, COCO and YOLOv3-tiny not.
+    scores = torch.tensor([[0.05, 0.9, 0.6], [0.9, 0.85, 0.15]])
+    cold = soft_kth_largest(scores, 2, 1e-4)
+    assert torch.allclose(cold, torch.tensor([0.6, 0.85]), atol=1e-3)  # the second-highest of each view
+    assert torch.equal(soft_kth_largest(scores, 1, 0.05), soft_maximum(scores, 0.05))
+    assert torch.allclose(soft_kth_largest(scores, 3, 1e-4), scores.amin(dim=-1), atol=1e-3)
+    # Warm, it stays between the smallest and the largest score.
+    warm = soft_kth_largest(scores, 2, 0.05)
+    assert torch.all(warm >= scores.amin(dim=-1)) and torch.all(warm <= scores.amax(dim=-1))
+    # Its gradient goes mostly to the second-highest score: lowering the best alone does not pass the vote.
+    leaf = scores.clone().requires_grad_(True)
+    soft_kth_largest(leaf, 2, 0.05).sum().backward()
+    assert int(leaf.grad[0].argmax()) == 2 and int(leaf.grad[1].argmax()) == 1
+    with pytest.raises(ValueError, match="k must be in"):
+        soft_kth_largest(scores, 4, 0.05)
 
 
 def test_one_confident_frame_dominates_the_drive_by_objective_but_not_the_mean():

@@ -23,17 +23,20 @@ def boards():
 def test_the_new_rows_run_all_three_networks_each_fusion_against_the_texture_made_against_all_three(boards):
     board, _ = boards
     assert [d.name for d in board.defences] == [*REFERENCES, *NEW_ROWS]
-    fusions = {}
+    fusions, adaptive = {}, {}
     for run in board.runs(first_seed_only=True):
         if run.defence in NEW_ROWS:
             perception = run.config.perception
             assert perception.kind == "ensemble" and perception.ensemble_members == ("detector", "coco", "yolo")
             fusions[run.defence] = (perception.ensemble_fusion, perception.ensemble_k if perception.ensemble_fusion == "k_of_n" else None)
             if run.kind == SAFETY and run.condition == "adaptive":
-                assert run.config.scenario.sign == "driveby_ensemble_all"
+                adaptive[run.defence] = run.config.scenario.sign
     assert fusions == {"ensemble3_or": ("or", None), "ensemble3_2of3": ("k_of_n", 2)}
-    record = json.loads((TEXTURE_DIR / "driveby_ensemble_all.json").read_text())
-    assert record["detector"] == "ensemble_all" and {"yolov3-tiny.weights", "centernet.bin"} <= set(record["weights_sha256"])
+    # Each fusion faces the texture made against its own rule: any of three, or two of three.
+    assert adaptive == {"ensemble3_or": "driveby_ensemble_all", "ensemble3_2of3": "driveby_ensemble_all_2of3"}
+    for texture, target in (("driveby_ensemble_all", "ensemble_all"), ("driveby_ensemble_all_2of3", "ensemble_all_2of3")):
+        record = json.loads((TEXTURE_DIR / f"{texture}.json").read_text())
+        assert record["detector"] == target and {"yolov3-tiny.weights", "centernet.bin"} <= set(record["weights_sha256"])
 
 
 def test_the_references_are_the_default_boards_rows_run_for_run(boards):
