@@ -2,6 +2,7 @@
 without running it. Its runs cost 60-100 s of CPU each here, so it is run by name only and never by the
 quick test of the default board (tests/experiments/test_leaderboard.py)."""
 
+import dataclasses
 import json
 
 import pytest
@@ -59,3 +60,15 @@ def test_the_default_board_runs_no_three_network_ensemble(boards):
         return perception.kind == "yolo" or (perception.kind == "ensemble" and "yolo" in perception.ensemble_members)
 
     assert not any(runs_yolo(r.config.perception) for r in default.runs())
+
+
+def test_the_clusters_board_is_the_three_network_board_with_see_through_crowns(boards):
+    board, _ = boards
+    clusters = load_leaderboard(THREE_NETWORKS.parent / "three_networks_clusters.toml")
+    runs, cluster_runs = list(board.runs()), list(clusters.runs())
+    assert len(runs) == len(cluster_runs) == 216
+    for run, cluster_run in zip(runs, cluster_runs):
+        assert (run.defence, run.condition, run.seed) == (cluster_run.defence, cluster_run.condition, cluster_run.seed)
+        assert run.config.scenario.foliage == "solid" and cluster_run.config.scenario.foliage == "clusters"
+        same = dataclasses.replace(cluster_run.config, scenario=dataclasses.replace(cluster_run.config.scenario, foliage="solid"))
+        assert config_hash(same) == config_hash(run.config)
