@@ -1,5 +1,5 @@
 """The three-network board (`experiments/leaderboards/three_networks.toml`, issue 29): its plan, checked
-without running it. Its runs cost 60-100 s of CPU each here, so it is run by name only and never by the
+without running it. Its runs took a median of 22 s of one core each here, so it is run by name only and never by the
 quick test of the default board (tests/experiments/test_leaderboard.py)."""
 
 import dataclasses
