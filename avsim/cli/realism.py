@@ -12,11 +12,23 @@ import os
 from pathlib import Path
 
 from avsim.outputs import FOLDER, add_output_argument, temporary_path, write_text
+from avsim.realism.frame_set import BIN_WIDTH_M, DEFAULT_MAX_DIST_M, MAX_DIST_LIMIT_M
 from avsim.realism.settings import NETWORKS, SETTINGS
 from avsim.validation import name_list_flag, number_flag
 
 DEFAULT_SETTINGS = "baseline,photo"
 DEFAULT_NETWORKS = "coco,yolo,detector"
+
+
+_max_dist_range = number_flag(DEFAULT_MAX_DIST_M, MAX_DIST_LIMIT_M, integer=True, unit="m")
+
+
+def _max_dist_flag(text: str) -> int:
+    """`--max-dist-m`: an integer in range, on the 5-m bins' grid."""
+    value = _max_dist_range(text)
+    if value % BIN_WIDTH_M:
+        raise argparse.ArgumentTypeError(f"must be a multiple of {BIN_WIDTH_M} m (the bins' width), got {text}")
+    return value
 
 
 def _cmd_realism(args: argparse.Namespace) -> int:
@@ -28,7 +40,7 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     for town in towns:
         TOWNS.get(town)  # every name checked before anything renders
     plan = BenchmarkPlan(tuple(SETTINGS[name] for name in args.settings), tuple(towns), args.frames,
-                         tuple(args.networks), args.threshold, args.seed)
+                         tuple(args.networks), args.threshold, args.seed, args.max_dist_m)
     rows = run_benchmark(plan, args.workers)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -55,7 +67,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     realism.add_argument("--towns", type=name_list_flag(), help="comma-separated towns (default: every town)")
     realism.add_argument("--frames", type=number_flag(1, 1000, integer=True), default=2,
                          help="scene draws per town (default 2): each gives every camera one frame per 5-m bin from "
-                              "10 to 60 m and 2 roadside views, with its own placement and daylight")
+                              "10 m to --max-dist-m and 2 roadside views, with its own placement and daylight")
+    realism.add_argument("--max-dist-m", type=_max_dist_flag, default=DEFAULT_MAX_DIST_M,
+                         help=f"end of the farthest 5-m bin [m], a multiple of 5 from {DEFAULT_MAX_DIST_M} to "
+                              f"{MAX_DIST_LIMIT_M} (default {DEFAULT_MAX_DIST_M}); the closed-loop files start the "
+                              f"car 150 m out, and a false stop sign can open the braking gate beyond 60 m")
     realism.add_argument("--threshold", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
                          help="confidence that counts (the braking threshold, default 0.5)")
     realism.add_argument("--seed", type=int, default=0, help="seed of the frame set (default 0)")

@@ -12,7 +12,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
-from avsim.realism.frame_set import SceneDraw, render_scene, scene_draws
+from avsim.realism.frame_set import DEFAULT_MAX_DIST_M, SceneDraw, render_scene, scene_draws
 from avsim.realism.scoring import build_networks, score_frame
 from avsim.realism.settings import RenderSetting
 from avsim.workers import init_worker, terminate_workers
@@ -23,7 +23,7 @@ _WORKER: dict = {}
 @dataclass(frozen=True)
 class BenchmarkPlan:
     """What to run: settings in order, towns, scene draws per town (`--frames`), networks, the
-    detection threshold and the seed of the frame set."""
+    detection threshold, the seed of the frame set and its farthest distance bin's end [m]."""
 
     settings: tuple[RenderSetting, ...]
     towns: tuple[str, ...]
@@ -31,6 +31,7 @@ class BenchmarkPlan:
     networks: tuple[str, ...]
     threshold: float = 0.5
     seed: int = 0
+    max_dist_m: int = DEFAULT_MAX_DIST_M
 
     def jobs(self) -> list[tuple[RenderSetting, SceneDraw]]:
         """Every (setting, scene) pair to render: each setting over the same seeded scene draws."""
@@ -42,11 +43,12 @@ def _start_worker(env: dict[str, str], parent_pid: int, networks: tuple[str, ...
     _WORKER["networks"] = build_networks(networks)
 
 
-def run_job(job: tuple[RenderSetting, SceneDraw, float]) -> list[dict]:
-    """Rows of one scene under one setting: one per frame and network."""
-    setting, scene, threshold = job
+def run_job(job: tuple[RenderSetting, SceneDraw, float, int]) -> list[dict]:
+    """Rows of one scene under one setting: one per frame and network. job: (setting, scene, detection
+    threshold, farthest bin's end [m])."""
+    setting, scene, threshold, max_dist_m = job
     rows = []
-    for index, (frame, model, data, rig) in enumerate(render_scene(scene, setting)):
+    for index, (frame, model, data, rig) in enumerate(render_scene(scene, setting, max_dist_m)):
         segmentation: dict = {}
         common = {"setting": setting.name, "town": scene.town, "placement": scene.placement, "scene": scene.index,
                   "frame": index, "camera": frame.camera, "dist_m": None if frame.dist_m is None else round(frame.dist_m, 3),
@@ -60,7 +62,7 @@ def run_benchmark(plan: BenchmarkPlan, workers: int) -> list[dict]:
     """Every job's rows, in job order, with a progress bar."""
     from tqdm import tqdm
 
-    jobs = [(setting, scene, plan.threshold) for setting, scene in plan.jobs()]
+    jobs = [(setting, scene, plan.threshold, plan.max_dist_m) for setting, scene in plan.jobs()]
     rows: list[dict] = []
     # Built here first, whatever the workers: missing or corrupt weights are refused in one line
     # before anything renders, not inside a worker.

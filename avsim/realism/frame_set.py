@@ -35,8 +35,21 @@ from avsim.world.towns import PLACEMENTS, TOWNS
 # experiments/coco_detector.toml [vary] and [defaults] (tests/realism/test_frame_set.py checks them).
 EXPERIMENT_LIGHTING = {"sun_elevation_deg": (30.0, 70.0), "sun_azimuth_deg": (-180.0, 180.0), "sun_intensity": (0.8, 1.2)}
 SENSOR_NOISE_STD_LEVELS = 2.0
-# 5-m distance bins from the camera to the sign face along the road [m]: 10-15, ..., 55-60.
-BIN_EDGES_M = tuple(range(10, 65, 5))
+# 5-m distance bins from the camera to the sign face along the road [m]: 10-15, ..., 55-60 by default.
+# `--max-dist-m` runs them out to 150 m, where the closed-loop files start the car: false stop signs that
+# open a braking gate 60-100 m out (docs/realism.md) are outside the default set.
+NEAREST_DIST_M = 10
+BIN_WIDTH_M = 5
+DEFAULT_MAX_DIST_M = 60
+MAX_DIST_LIMIT_M = 150
+
+
+def bin_edges_m(max_dist_m: int = DEFAULT_MAX_DIST_M) -> tuple[int, ...]:
+    """The bins' edges [m] from NEAREST_DIST_M to max_dist_m (a multiple of BIN_WIDTH_M)."""
+    return tuple(range(NEAREST_DIST_M, max_dist_m + BIN_WIDTH_M, BIN_WIDTH_M))
+
+
+BIN_EDGES_M = bin_edges_m()
 ROADSIDE_FRAMES = 2  # per scene draw and camera
 PLACEMENT_ORDER = ("standard", "near", "far")  # scene draw k of a town uses PLACEMENT_ORDER[k % 3]
 LATERAL_JITTER_M = 0.3  # about the lane centre, as a driver holds a lane
@@ -93,9 +106,12 @@ def scene_config(scene: SceneDraw, setting: RenderSetting) -> SimConfig:
     return with_overrides(SimConfig(), overrides)
 
 
-def render_scene(scene: SceneDraw, setting: RenderSetting) -> Iterator[tuple[Frame, mujoco.MjModel, mujoco.MjData, CameraRig]]:
+def render_scene(scene: SceneDraw, setting: RenderSetting, max_dist_m: int = DEFAULT_MAX_DIST_M
+                 ) -> Iterator[tuple[Frame, mujoco.MjModel, mujoco.MjData, CameraRig]]:
     """Each frame of `scene` under `setting`, with the model, data and rig it was drawn by (for a
-    segmentation look-up while the pose holds): every camera at every bin, then the roadside views."""
+    segmentation look-up while the pose holds): every camera at every bin out to max_dist_m [m], then
+    the roadside views. A longer set draws its poses from the same generator in another order, so its
+    frames are not a superset of the default set's."""
     config = scene_config(scene, setting)
     spec, info = compose_scene(config)
     model = spec.compile()
@@ -110,7 +126,7 @@ def render_scene(scene: SceneDraw, setting: RenderSetting) -> Iterator[tuple[Fra
     try:
         for camera in CAMERA_NAMES:
             cam_x_m = float(model.cam_pos[model.camera(f"car/{camera}").id][0])
-            poses = [(lo + 5.0 * float(rng.random()), None) for lo in BIN_EDGES_M[:-1]]
+            poses = [(lo + BIN_WIDTH_M * float(rng.random()), None) for lo in bin_edges_m(max_dist_m)[:-1]]
             poses += [(None, math.radians(float(rng.choice([-1, 1]) * rng.uniform(15, 75)))) for _ in range(ROADSIDE_FRAMES)]
             for dist_m, yaw in poses:
                 y_m = layout.lane_center_y_m + float(rng.uniform(-LATERAL_JITTER_M, LATERAL_JITTER_M))

@@ -6,18 +6,43 @@ found/signs and the 95 % Wilson interval; "pooled" is 10-40 m, the range the iss
 
 from __future__ import annotations
 
+import math
 from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
 
 from avsim.perception.ap import average_precision
-from avsim.realism.frame_set import BIN_EDGES_M
+from avsim.realism.frame_set import BIN_WIDTH_M, DEFAULT_MAX_DIST_M, bin_edges_m
 from avsim.realism.settings import NETWORKS, SETTINGS
 from avsim.stats import rate_with_interval, wilson_interval
 
 POOLED_RANGE_M = (10.0, 40.0)
-BINS = tuple(zip(BIN_EDGES_M[:-1], BIN_EDGES_M[1:]))
+
+
+def _max_dist_m(rows: list[dict]) -> int:
+    """The farthest bin's end [m] of the set these rows come from (`--max-dist-m`; at least the default)."""
+    farthest = max((r["dist_m"] for r in rows if r["dist_m"] is not None), default=0.0)
+    return max(DEFAULT_MAX_DIST_M, BIN_WIDTH_M * math.ceil(farthest / BIN_WIDTH_M))
+
+
+def distance_bins(rows: list[dict]) -> list[tuple[int, int]]:
+    """The 5-m bins (lo, hi) [m] of the set these rows come from."""
+    edges = bin_edges_m(_max_dist_m(rows))
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def distance_spans(rows: list[dict]) -> list[tuple[float, float]]:
+    """The pooled spans [m] the summary reports: 10-40 (the issue's targets), 40-60, and 60 to the
+    farthest bin where the set runs beyond 60 m."""
+    spans = [POOLED_RANGE_M, (POOLED_RANGE_M[1], float(DEFAULT_MAX_DIST_M))]
+    if _max_dist_m(rows) > DEFAULT_MAX_DIST_M:
+        spans.append((float(DEFAULT_MAX_DIST_M), float(_max_dist_m(rows))))
+    return spans
+
+
+def _span_name(span: tuple[float, float]) -> str:
+    return f"{span[0]:.0f}–{span[1]:.0f} m"
 
 
 def _in_bin(dist_m: float, lo: float, hi: float) -> bool:
@@ -42,12 +67,13 @@ def recall_table(rows: list[dict], network: str, camera: str, key: str = "found"
     population = [r for r in sign_rows(rows) if r["network"] == network and r["camera"] == camera]
     settings = _ordered({r["setting"] for r in population}, list(SETTINGS))
     towns = sorted({r["town"] for r in population})
-    lines = ["| setting | town | " + " | ".join(f"{lo}–{hi}" for lo, hi in BINS) + " | pooled 10–40 m |",
-             "|---|---|" + "---|" * (len(BINS) + 1)]
+    bins = distance_bins(rows)
+    lines = ["| setting | town | " + " | ".join(f"{lo}–{hi}" for lo, hi in bins) + " | pooled 10–40 m |",
+             "|---|---|" + "---|" * (len(bins) + 1)]
     for setting in settings:
         for town in towns + ["all"]:
             mine = [r for r in population if r["setting"] == setting and town in (r["town"], "all")]
-            cells = [_recall_cell([r[key] for r in mine if _in_bin(r["dist_m"], lo, hi)]) for lo, hi in BINS]
+            cells = [_recall_cell([r[key] for r in mine if _in_bin(r["dist_m"], lo, hi)]) for lo, hi in bins]
             pooled = [r[key] for r in mine if _in_bin(r["dist_m"], *POOLED_RANGE_M)]
             lines.append(f"| {setting} | {town} | " + " | ".join(cells) + f" | {_recall_cell(pooled)} |")
     return lines
@@ -68,6 +94,22 @@ def false_stop_table(rows: list[dict]) -> list[str]:
             on = Counter(f[-1] for r in mine for f in r["false_stop_signs"])
             lines.append(f"| {network} | {setting} | " + " | ".join(cells) + " | "
                          + (", ".join(f"{name} {n}" for name, n in on.most_common(4)) or "–") + " |")
+    return lines
+
+
+def false_stop_by_distance_table(rows: list[dict]) -> list[str]:
+    """Per network and setting: the frames with at least one false stop sign, of the sign views in each
+    of `distance_spans` (camera to sign) and of the roadside views, all towns and cameras together."""
+    spans = distance_spans(rows)
+    lines = ["| network | setting | " + " | ".join(_span_name(span) for span in spans) + " | roadside views |",
+             "|---|---|" + "---|" * (len(spans) + 1)]
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        for setting in _ordered({r["setting"] for r in rows}, list(SETTINGS)):
+            mine = [r for r in rows if r["network"] == network and r["setting"] == setting]
+            groups = [[r for r in mine if r["dist_m"] is not None and _in_bin(r["dist_m"], *span)] for span in spans]
+            groups.append([r for r in mine if r["dist_m"] is None])
+            cells = [rate_with_interval(sum(bool(r["false_stop_signs"]) for r in frames), len(frames)) for frames in groups]
+            lines.append(f"| {network} | {setting} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -92,17 +134,18 @@ def ap_table(rows: list[dict]) -> list[str]:
 
 
 def summary_table(rows: list[dict]) -> list[str]:
-    """One line per network and setting: pooled recall 10-40 m and 40-60 m per camera (all towns),
-    false stop signs per frame, stop-sign AP."""
+    """One line per network and setting: pooled recall per camera (all towns) over each of
+    `distance_spans`, false stop signs per frame, stop-sign AP."""
     population = sign_rows(rows)
-    lines = ["| network | setting | front 10–40 m | front 40–60 m | side 10–40 m | side 40–60 m | false stop signs / frame | AP |",
-             "|---|---|---|---|---|---|---|---|"]
+    spans = distance_spans(rows)
+    lines = ["| network | setting | " + " | ".join(f"{camera} {_span_name(span)}" for camera in ("front", "side") for span in spans)
+             + " | false stop signs / frame | AP |", "|---|---|" + "---|" * (2 * len(spans) + 2)]
     settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
     for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
         for setting in settings:
             cells = []
             for camera in ("front", "side"):
-                for span in (POOLED_RANGE_M, (POOLED_RANGE_M[1], float(BIN_EDGES_M[-1]))):
+                for span in spans:
                     cells.append(_recall_cell([r["found"] for r in population if r["network"] == network and r["setting"] == setting
                                                and r["camera"] == camera and _in_bin(r["dist_m"], *span)]))
             frames = [r for r in rows if r["network"] == network and r["setting"] == setting]
@@ -136,7 +179,10 @@ def report(rows: list[dict], threshold: float) -> str:
              "## Render settings and their cost", "", *cost_table(rows), "",
              "## Summary: recall pooled over towns (IoU >= 0.5), false stop signs, AP", "", *summary_table(rows), "",
              "## Stop-sign AP at IoU 0.5 (every frame)", "", *ap_table(rows), "",
-             "## False stop signs per frame", "", *false_stop_table(rows), ""]
+             "## False stop signs per frame", "", *false_stop_table(rows), "",
+             "## Frames with a false stop sign, by distance to the sign", "",
+             "Frames with at least one false stop sign / frames (Wilson 95 % interval), every town and camera; the "
+             "spans are the sign views' distances, camera to sign.", "", *false_stop_by_distance_table(rows), ""]
     for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
         for camera in ("front", "side"):
             lines += [f"## {NETWORKS[network]} ({network}), {camera} camera: recall, IoU >= 0.5", "",
@@ -157,7 +203,8 @@ def write_figure(rows: list[dict], path: Path) -> None:
     settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
     fig, axes = plt.subplots(2, len(networks), figsize=(4.2 * len(networks), 6.4), sharex=True, sharey=True, squeeze=False)
     population = sign_rows(rows)
-    centres = [(lo + hi) / 2 for lo, hi in BINS]
+    bins = distance_bins(rows)
+    centres = [(lo + hi) / 2 for lo, hi in bins]
     for col, network in enumerate(networks):
         for row_index, camera in enumerate(("front", "side")):
             ax = axes[row_index][col]
@@ -165,11 +212,11 @@ def write_figure(rows: list[dict], path: Path) -> None:
                 found_by_bin = defaultdict(list)
                 for r in population:
                     if r["network"] == network and r["camera"] == camera and r["setting"] == setting:
-                        for lo, hi in BINS:
+                        for lo, hi in bins:
                             if _in_bin(r["dist_m"], lo, hi):
                                 found_by_bin[lo].append(r["found"])
                 xs, ys, lows, highs = [], [], [], []
-                for (lo, _), x in zip(BINS, centres):
+                for (lo, _), x in zip(bins, centres):
                     found = found_by_bin[lo]
                     if found:
                         low, high = wilson_interval(sum(found), len(found))

@@ -46,6 +46,21 @@ def geom_label(model: mujoco.MjModel, geom_id: int) -> str:
     return _COPY_NUMBER.sub("", name)
 
 
+def geom_under_box(model: mujoco.MjModel, ids: np.ndarray, image_height_px: int, box_xyxy_px) -> str:
+    """What a box sits on: `geom_label` of the geom most common in the middle ninth of the box.
+
+    ids: (s·H, s·W) geom ids of a segmentation render (`CameraRig.render_segmentation`, -1 where no
+    geom is), s its supersampling; image_height_px: H, the RGB image's height, in whose pixels
+    box_xyxy_px (x0, y0, x1, y1) is given. "outside" for a box wholly outside the image.
+    """
+    scale = ids.shape[0] / image_height_px
+    x0, y0, x1, y1 = np.asarray(box_xyxy_px, float) * scale
+    w, h = x1 - x0, y1 - y0
+    middle = ids[int(y0 + h / 3):max(int(y1 - h / 3), int(y0 + h / 3) + 1), int(x0 + w / 3):max(int(x1 - w / 3), int(x0 + w / 3) + 1)]
+    values, counts = np.unique(middle, return_counts=True)
+    return geom_label(model, int(values[np.argmax(counts)])) if values.size else "outside"
+
+
 def _centred(boxes: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """(D,) whether each box's centre lies inside any of the (N, 4) truth boxes."""
     if not len(boxes) or not len(truth):
@@ -71,13 +86,7 @@ def score_frame(frame: Frame, detector: object, threshold: float, model: mujoco.
     for score, box in zip(scores[false], boxes[false]):
         if "ids" not in segmentation:
             segmentation["ids"] = rig.render_segmentation(data, frame.camera)
-        ids = segmentation["ids"]
-        scale = ids.shape[0] / frame.image.shape[0]
-        x0, y0, x1, y1 = box * scale
-        w, h = x1 - x0, y1 - y0
-        middle = ids[int(y0 + h / 3):max(int(y1 - h / 3), int(y0 + h / 3) + 1), int(x0 + w / 3):max(int(x1 - w / 3), int(x0 + w / 3) + 1)]
-        values, counts = np.unique(middle, return_counts=True)
-        on = geom_label(model, int(values[np.argmax(counts)])) if values.size else "outside"
+        on = geom_under_box(model, segmentation["ids"], frame.image.shape[0], box)
         false_rows.append([round(float(score), 4), *[round(float(v), 1) for v in box], on])
     return {
         "found": bool(matched_at_threshold.any()),

@@ -13,24 +13,16 @@ Measured here: docs/realism.md, "See-through tree crowns".
 
 import sys
 
-import numpy as np
-
 from avsim.config import SimConfig, with_overrides
 from avsim.control.policy_base import STOP_CLASS
 from avsim.loop import ClosedLoop
-from avsim.realism.scoring import geom_label
+from avsim.realism.scoring import geom_under_box
 
 
 def _sits_on(loop: ClosedLoop, camera: str, box_xyxy_px) -> str:
-    """The label of the geom most common in the middle ninth of `box_xyxy_px` (RGB-image pixels)."""
+    """What `box_xyxy_px` (RGB-image pixels) sits on, from a segmentation render at the loop's state."""
     ids = loop.rig.render_segmentation(loop.data, camera)
-    scale = ids.shape[0] // loop.config.camera.height_px
-    x0, y0, x1, y1 = (np.asarray(box_xyxy_px) * scale).tolist()
-    width, height = x1 - x0, y1 - y0
-    middle = ids[int(y0 + height / 3):max(int(y0 + 2 * height / 3), int(y0 + height / 3) + 1),
-                 int(x0 + width / 3):max(int(x0 + 2 * width / 3), int(x0 + width / 3) + 1)]
-    values, counts = np.unique(middle, return_counts=True)
-    return geom_label(loop.model, int(values[np.argmax(counts)]))
+    return geom_under_box(loop.model, ids, loop.config.camera.height_px, box_xyxy_px)
 
 
 def main(seeds: list[int], foliages: list[str]) -> None:

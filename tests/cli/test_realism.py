@@ -8,7 +8,8 @@ from avsim import cli
 
 
 @pytest.mark.parametrize("flag, value, named", [("--settings", "baseline,fancy", "fancy"), ("--networks", "coco,ssd", "ssd"),
-                                                ("--frames", "0", "--frames"), ("--threshold", "1", "--threshold")])
+                                                ("--frames", "0", "--frames"), ("--threshold", "1", "--threshold"),
+                                                ("--max-dist-m", "62", "multiple of 5"), ("--max-dist-m", "155", "--max-dist-m")])
 def test_bad_names_and_numbers_are_refused_in_one_line(flag, value, named, capsys):
     assert cli.main(["realism", flag, value]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
@@ -20,15 +21,17 @@ def test_an_unknown_town_is_refused_before_anything_renders(capsys, tmp_path):
     assert "town99" in capsys.readouterr().err and not (tmp_path / "out").exists()
 
 
-@pytest.mark.slow  # 2 x 24 frames through the own detector: about 15 s here
+@pytest.mark.slow  # 2 x 28 frames through the own detector: about 15 s here
 def test_a_small_run_writes_its_report_figure_and_rows(tmp_path, capsys):
     out = tmp_path / "realism"
     assert cli.main(["realism", "--towns", "town07", "--frames", "1", "--networks", "detector",
-                     "--settings", "baseline,ss2", "--workers", "1", "--out", str(out)]) == 0
+                     "--settings", "baseline,ss2", "--workers", "1", "--max-dist-m", "70", "--out", str(out)]) == 0
     rows = [json.loads(line) for line in (out / "frames.jsonl").read_text().splitlines()]
-    assert len(rows) == 2 * 2 * (10 + 2)  # settings x cameras x (bins + roadside views)
+    assert len(rows) == 2 * 2 * (12 + 2)  # settings x cameras x (bins out to 70 m + roadside views)
+    assert max(r["dist_m"] for r in rows if r["dist_m"] is not None) > 65
     assert {r["setting"] for r in rows} == {"baseline", "ss2"}
     near = [r for r in rows if r["dist_m"] is not None and r["dist_m"] < 40 and r["camera"] == "front"]
     assert sum(r["found"] for r in near) >= 0.8 * len(near)  # the own detector's trained range
     assert (out / "recall.png").stat().st_size > 10_000
-    assert "# Render realism benchmark (48 frames)" in (out / "report.md").read_text()
+    text = (out / "report.md").read_text()
+    assert "# Render realism benchmark (56 frames)" in text and "| front 60–70 m |" in text and "65–70 |" in text

@@ -3,8 +3,8 @@
 import tomllib
 from pathlib import Path
 
-from avsim.realism.frame_set import (EXPERIMENT_LIGHTING, PLACEMENT_ORDER, SENSOR_NOISE_STD_LEVELS, scene_config,
-                                     scene_draws)
+from avsim.realism.frame_set import (BIN_EDGES_M, EXPERIMENT_LIGHTING, PLACEMENT_ORDER, SENSOR_NOISE_STD_LEVELS,
+                                     bin_edges_m, scene_config, scene_draws)
 from avsim.realism.settings import SETTINGS
 from avsim.world.towns import PLACEMENTS
 
@@ -36,3 +36,8 @@ def test_a_setting_changes_the_camera_and_nothing_of_the_scene():
     assert baseline.scenario == photo.scenario and baseline.camera != photo.camera
     assert (photo.camera.supersample, photo.camera.jpeg_quality) == (2, 90)
     assert baseline.scenario.town == "town03" and baseline.scenario.sign == "clean"
+
+
+def test_the_bins_run_from_10_m_to_the_farthest_asked_for():
+    assert BIN_EDGES_M == bin_edges_m() == (10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 60)
+    assert bin_edges_m(100)[:len(BIN_EDGES_M)] == BIN_EDGES_M and bin_edges_m(100)[-1] == 100

@@ -4,7 +4,8 @@ import math
 
 import pytest
 
-from avsim.realism.report import ap_table, false_stop_table, recall_table, report, write_figure
+from avsim.realism.report import (ap_table, false_stop_by_distance_table, false_stop_table, recall_table, report,
+                                  summary_table, write_figure)
 from avsim.stats import rate_with_interval
 
 
@@ -34,6 +35,24 @@ def test_false_stop_signs_per_frame_name_what_they_sit_on():
     line = next(line for line in false_stop_table(rows) if line.startswith("| coco | baseline"))
     assert "1.000 (3/3)" in line and "0.000 (0/1)" in line and "0.750 (3/4)" in line
     assert line.endswith("tree_right/crown 2, sky 1 |")
+
+
+def test_a_set_beyond_60_m_gets_its_own_bins_and_span():
+    rows = [_row(dist_m=12.0, frame=0), _row(dist_m=57.0, frame=1), _row(dist_m=83.0, found=False, frame=2, detections=(),
+            false=[(0.5, 0, 0, 5, 5, "tree_right/crown"), (0.6, 0, 0, 5, 5, "tree_right/crown")]),
+            _row(dist_m=None, frame=3, n_truth=0, detections=())]
+    header = summary_table(rows)[0]
+    assert "| front 10–40 m | front 40–60 m | front 60–85 m | side 10–40 m |" in header
+    assert recall_table(rows, "coco", "front")[0].split(" | ")[-2] == "80–85"  # the last bin, before the pooled column
+    by_distance = false_stop_by_distance_table(rows)
+    assert by_distance[0] == "| network | setting | 10–40 m | 40–60 m | 60–85 m | roadside views |"
+    # Frames with at least one false stop sign: the 83 m frame's two boxes count once.
+    assert by_distance[2] == (f"| coco | baseline | {rate_with_interval(0, 1)} | {rate_with_interval(0, 1)} | "
+                              f"{rate_with_interval(1, 1)} | {rate_with_interval(0, 1)} |")
+
+
+def test_a_default_set_keeps_the_default_columns():
+    assert "60–" not in summary_table(_grid_rows())[0]
 
 
 def test_ap_is_computed_over_every_frame_of_a_setting():

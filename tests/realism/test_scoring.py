@@ -1,8 +1,27 @@
 """What a false stop sign sits on, named by kind."""
 
 import mujoco
+import numpy as np
 
-from avsim.realism.scoring import geom_label
+from avsim.realism.scoring import geom_label, geom_under_box
+
+
+def _two_geom_model() -> mujoco.MjModel:
+    spec = mujoco.MjSpec()
+    spec.worldbody.add_geom(name="tree_right_3/crown", size=[1, 0, 0])
+    spec.worldbody.add_geom(name="stop_sign/face", size=[1, 0, 0])
+    return spec.compile()
+
+
+def test_a_box_sits_on_the_geom_most_common_in_its_middle_ninth():
+    model = _two_geom_model()
+    ids = np.full((96, 128), -1)  # a 2x supersampled segmentation of a 48 x 64 px image
+    ids[30:60, 30:60] = 0  # the crown fills the middle ninth of the box below...
+    ids[24:66, 24:36] = 1  # ...but for a strip of sign that covers its edges, outside the middle ninth
+    assert geom_under_box(model, ids, 48, (12, 12, 33, 33)) == "tree_right/crown"
+    assert geom_under_box(model, ids, 48, (0, 0, 6, 6)) == "sky"  # where no geom is
+    assert geom_under_box(model, ids, 48, (40, 30, 60, 45)) == "sky"
+    assert geom_under_box(model, ids, 48, (200, 200, 220, 220)) == "outside"
 
 
 def test_geom_labels_drop_copy_numbers_and_fall_back_to_the_body():
