@@ -24,7 +24,7 @@ run: $(VENV)/.installed
 	$(PY) -m avsim reproduce
 
 # Everything: the study, the adaptive attacker and the wet road, the sensitivity, the COCO network's closed
-# loop and the attack-success files (2525 runs: hours on 2 cores). The leaderboard is `avsim leaderboard`.
+# loop and the attack-success files (2645 runs: hours on 2 cores). The leaderboard is `avsim leaderboard`.
 run-all: $(VENV)/.installed
 	$(PY) -m avsim reproduce --all
 

@@ -12,6 +12,7 @@ from avsim import cli
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
 from avsim.experiments import load_experiment
+from avsim.experiments.spec import config_at_seed
 
 EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
 TABLE3 = EXPERIMENTS_DIR / "table3_stop_positions.toml"
@@ -38,16 +39,20 @@ SHIPPED = {
 # Table III under the two COCO-trained networks: the same cells as the own detector's
 SHIPPED["table3_coco.toml"] = SHIPPED["table3_yolo.toml"] = SHIPPED["table3_stop_positions.toml"]
 SHIPPED["table3_yolo_clusters.toml"] = SHIPPED["table3_stop_positions.toml"]
+# The COCO closed loop in Town10 under three scenes (flat, sheeting, sheeting and textured)
+SHIPPED["coco_detector_realism.toml"] = [("clean", policy) for _ in range(3 * 2) for policy in ("baseline", "adjusted")]
+# file name -> seeds per cell, where not 5
+SEEDS = {"coco_detector_realism.toml": 10}
 # file name -> the report section it declares
 REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
                "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
                "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare", "sensitivity.toml": "sensitivity",
                "coco_detector.toml": "stop_rates", "yolo_detector.toml": "stop_rates",
                "table3_coco.toml": "table3", "table3_yolo.toml": "table3",
-               "table3_yolo_clusters.toml": "table3"}
+               "table3_yolo_clusters.toml": "table3", "coco_detector_realism.toml": "cells"}
 # file name -> the perception its runs see through (avsim's own detector where not named)
 PERCEPTION_KIND = {"coco_detector.toml": "coco", "yolo_detector.toml": "yolo", "table3_coco.toml": "coco",
-                   "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo"}
+                   "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo", "coco_detector_realism.toml": "coco"}
 # files whose cells cover every town and placement (the rest are Town07 standard)
 EVERY_PLACE = ("coco_detector.toml", "yolo_detector.toml")
 EVERY_TOWN_AND_PLACEMENT = [(town, placement) for town in ("town03", "town07", "town10") for placement in ("near", "standard", "far")]
@@ -68,7 +73,7 @@ def test_every_shipped_file_is_tested():
 @pytest.mark.parametrize("name", sorted(SHIPPED))
 def test_shipped_file_loads_with_the_study_cells(name):
     experiment = load_experiment(EXPERIMENTS_DIR / name)
-    assert experiment.seeds == 5
+    assert experiment.seeds == SEEDS.get(name, 5)
     assert [(c.config.scenario.sign, c.config.policy.name) for c in experiment.cells] == SHIPPED[name]
     for cell in experiment.cells:
         assert cell.config.scenario.speed_kmh == 85.0
@@ -82,6 +87,8 @@ def test_shipped_file_loads_with_the_study_cells(name):
         assert places == DEFENDED_CELLS
     elif name in EVERY_PLACE:
         assert places == [place for place in EVERY_TOWN_AND_PLACEMENT for _ in range(5)]
+    elif name == "coco_detector_realism.toml":
+        assert places == [("town10", placement) for _ in range(3) for placement in ("standard", "far") for _ in range(2)]
     else:
         assert {(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells} == {("town07", "standard")}
 
@@ -90,14 +97,30 @@ def test_shipped_file_loads_with_the_study_cells(name):
 def test_shipped_file_expands_to_cells_times_seeds_runs(name):
     experiment = load_experiment(EXPERIMENTS_DIR / name)
     runs = experiment.runs()
-    assert len(runs) == len(SHIPPED[name]) * 5
-    assert [(r.cell_name, r.seed) for r in runs] == [(c.name, s) for c in experiment.cells for s in range(5)]
+    seeds = SEEDS.get(name, 5)
+    assert len(runs) == len(SHIPPED[name]) * seeds
+    assert [(r.cell_name, r.seed) for r in runs] == [(c.name, s) for c in experiment.cells for s in range(seeds)]
     for run in runs:
         assert run.config.scenario.seed == run.seed
         # Apart from the seed and the varied lighting, a run is its cell.
         cell = experiment.cell(run.cell_name)
         assert run.config.policy == cell.config.policy
         assert run.config.scenario.sign == cell.config.scenario.sign
+
+
+def test_the_coco_realism_file_is_coco_detectors_town10_cells_under_three_scenes():
+    realism = load_experiment(EXPERIMENTS_DIR / "coco_detector_realism.toml")
+    coco = load_experiment(EXPERIMENTS_DIR / "coco_detector.toml")
+    scenes = {"flat": {}, "sheeting": {"sign_materials": "sheeting"},
+              "textured": {"sign_materials": "sheeting", "materials": "textured"}}
+    assert realism.vary == coco.vary
+    coco_runs = {(r.cell_name, r.seed): r.config for r in coco.runs()}
+    for run in realism.runs():
+        cell, scene = run.cell_name.rsplit(", ", 1)
+        # coco_detector.toml's run of that cell and seed (its seeds end at 4; seed k draws the same light in any file).
+        reference = config_at_seed(coco.cell(cell).config, coco.vary, run.seed)
+        assert coco_runs.get((cell, run.seed), reference) == reference
+        assert run.config == with_overrides(reference, {"scenario": scenes[scene]})
 
 
 def test_runs_vary_lighting_per_seed_within_range_and_identically_across_cells():
