@@ -13,7 +13,10 @@ import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tarfile
+import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -74,6 +77,30 @@ class FetchedFiles:
                 extracted[name] = target
         return extracted
 
+    def ensure(self, cache_dir: Path, download: Callable[[Path], Path], prefix: str = "") -> tuple[Path, ...]:
+        """The cache's files (as `cached`), fetched first where any is missing or altered: `download(workdir)`
+        gives the archive, whose members (named `prefix` + member) are checked in a temporary folder and moved
+        in only when every hash matches, so nothing partial is left in `cache_dir`."""
+        try:
+            return self.cached(cache_dir)
+        except self.error:
+            pass
+        with tempfile.TemporaryDirectory(prefix="avsim-fetch-") as tmp:
+            workdir = Path(tmp)
+            self.install(self.extract(download(workdir), workdir, prefix), cache_dir)
+        return self.cached(cache_dir)
+
+    def run_fetch(self, fetch: Callable[[], tuple[Path, ...]], fetched: str) -> int:
+        """A fetch module's `main`: `fetch()`, then where the files are (exit 0) or the one-line error (exit 2).
+        fetched: what to call them in the report, with their source and licence."""
+        try:
+            paths = fetch()
+        except self.error as exc:
+            print(f"avsim: error: {exc}", file=sys.stderr)
+            return exc.exit_code
+        print(f"{fetched} in {paths[0].parent}: {', '.join(path.name for path in paths)}, sha256 checked")
+        return 0
+
     def install(self, extracted: dict[str, Path], cache_dir: Path) -> tuple[Path, ...]:
         """Check every extracted file's sha256, then move them all into `cache_dir`: nothing is
         written there unless every hash matches."""
@@ -91,6 +118,23 @@ class FetchedFiles:
         return self.cached(cache_dir)
 
 
+def download_archive(command: list[str], shown: str, workdir: Path, pattern: str, registry: str, timeout_s: float,
+                     error: type[AvsimError], fetch_command: str) -> Path:
+    """Run a package manager's download `command` in `workdir`; returns the one archive it left there matching
+    `pattern`. A failure, no or a second archive, or a download slower than `timeout_s` [s] is one `error`
+    naming the command as `shown`, `registry` (where to look) and `fetch_command`."""
+    try:
+        done = subprocess.run(command, cwd=workdir, capture_output=True, text=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        raise error(f"`{shown}` took more than {timeout_s:g} s; check the network and {registry}, then run "
+                    f"`{fetch_command}` again") from None
+    archives = sorted(workdir.glob(pattern))
+    if done.returncode != 0 or len(archives) != 1:
+        reason = " ".join((done.stderr or done.stdout or "no output").split())[-200:]
+        raise error(f"`{shown}` failed ({reason}); check the network and {registry}, then run `{fetch_command}` again")
+    return archives[0]
+
+
 NPM_TIMEOUT_S = 600
 
 
@@ -102,15 +146,5 @@ def npm_pack(spec: str, workdir: Path, error: type[AvsimError], fetch_command: s
     if npm is None:
         raise error(f"`npm` is not on the PATH, so {spec} cannot be fetched; install Node.js with npm (e.g. "
                     f"`apt-get install npm`), then run `{fetch_command}`")
-    try:
-        done = subprocess.run([npm, "pack", spec, "--silent", "--pack-destination", str(workdir)], cwd=workdir,
-                              capture_output=True, text=True, timeout=NPM_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        raise error(f"`npm pack {spec}` took more than {NPM_TIMEOUT_S} s; check the network and the npm registry, "
-                    f"then run `{fetch_command}` again") from None
-    tarballs = sorted(workdir.glob("*.tgz"))
-    if done.returncode != 0 or len(tarballs) != 1:
-        reason = " ".join((done.stderr or done.stdout or "no output").split())[-200:]
-        raise error(f"`npm pack {spec}` failed ({reason}); check the network and the npm registry, then run "
-                    f"`{fetch_command}` again")
-    return tarballs[0]
+    return download_archive([npm, "pack", spec, "--silent", "--pack-destination", str(workdir)], f"npm pack {spec}",
+                            workdir, "*.tgz", "the npm registry", NPM_TIMEOUT_S, error, fetch_command)

