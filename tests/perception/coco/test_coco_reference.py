@@ -16,6 +16,7 @@ its box within 0.5 px and its score within 1e-3.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import shutil
@@ -47,14 +48,18 @@ def _side_window(frame: np.ndarray) -> torch.Tensor:
 
 
 @pytest.fixture(scope="module")
-def node_reference() -> Path:
-    """NODE_DIR with its pinned node_modules installed; fails (not skips) without node and npm."""
+def node_reference(tmp_path_factory) -> Path:
+    """NODE_DIR with its pinned node_modules installed; fails (not skips) without node and npm. The COCO and
+    NanoDet reference tests share it, so under pytest-xdist the install holds a lock of the session's."""
     node, npm = shutil.which("node"), shutil.which("npm")
     if node is None or npm is None:
         pytest.fail("the TF.js reference needs node and npm on the PATH (apt-get install nodejs npm)")
     installed = NODE_DIR / "node_modules" / "@tensorflow" / "tfjs-core" / "package.json"
-    if not installed.is_file() or json.loads(installed.read_text())["version"] != TFJS_VERSION:
-        subprocess.run([npm, "ci", "--no-audit", "--no-fund"], cwd=NODE_DIR, check=True, capture_output=True, timeout=600)
+    with (tmp_path_factory.getbasetemp().parent / "node-reference.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not installed.is_file() or json.loads(installed.read_text())["version"] != TFJS_VERSION:
+            subprocess.run([npm, "ci", "--no-audit", "--no-fund"], cwd=NODE_DIR, check=True, capture_output=True,
+                           timeout=600)
     return NODE_DIR
 
 
