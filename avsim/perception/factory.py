@@ -29,8 +29,6 @@ PERCEPTIONS.add("none", lambda cfg, camera, model, scene, seed, detectors: NoPer
 # detect(image_rgb, camera, region_px=...) -> list[Detection]. `avsim detect` runs these on
 # image files; the closed loop wraps them in a FramePerception (render, noise, range).
 FrameDetectorFactory = Callable[[PerceptionConfig], "FrameDetector"]
-NANODET_UPSCALE = 2.0
-NANODET_NMS_IOU = 0.6
 FRAME_DETECTORS: Registry[FrameDetectorFactory] = Registry("pixel perception")
 
 
@@ -76,13 +74,11 @@ def _nanodet_frames(config: PerceptionConfig) -> "FrameDetector":
     # Imported here so runs without it never import the interpreter (nor need its fetched files).
     import torch
 
-    from avsim.perception.nanodet.model import load_nanodet
+    from avsim.perception.nanodet.model import INPUT_UPSCALE, NMS_IOU, load_nanodet
     from avsim.perception.yolo.infer import YoloRunner
 
     torch.set_num_threads(config.threads)
-    # The region of interest enlarged by 2, as the two other COCO networks see it by default; NMS at IoU 0.6,
-    # NanoDet's own.
-    return YoloRunner(load_nanodet(), "upscale", NANODET_UPSCALE, config.min_confidence, iou_threshold=NANODET_NMS_IOU)
+    return YoloRunner(load_nanodet(), "upscale", INPUT_UPSCALE, config.min_confidence, iou_threshold=NMS_IOU)
 
 
 def _onnx_frames(config: PerceptionConfig) -> "FrameDetector":

@@ -36,8 +36,9 @@ def distance_spans(rows: list[dict]) -> list[tuple[float, float]]:
     """The pooled spans [m] the summary reports: 10-40 (the issue's targets), 40-60, and 60 to the
     farthest bin where the set runs beyond 60 m."""
     spans = [POOLED_RANGE_M, (POOLED_RANGE_M[1], float(DEFAULT_MAX_DIST_M))]
-    if _max_dist_m(rows) > DEFAULT_MAX_DIST_M:
-        spans.append((float(DEFAULT_MAX_DIST_M), float(_max_dist_m(rows))))
+    farthest_m = _max_dist_m(rows)
+    if farthest_m > DEFAULT_MAX_DIST_M:
+        spans.append((float(DEFAULT_MAX_DIST_M), float(farthest_m)))
     return spans
 
 

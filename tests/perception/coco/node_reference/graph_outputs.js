@@ -12,29 +12,11 @@
 'use strict';
 
 const fs = require('fs');
-const tf = require('@tensorflow/tfjs-core');
-require('@tensorflow/tfjs-backend-cpu');
-const tfconv = require('@tensorflow/tfjs-converter');
-
-function modelArtifacts(jsonPath, binPath) {
-  const graph = JSON.parse(fs.readFileSync(jsonPath, 'utf8'));
-  const bin = fs.readFileSync(binPath);
-  return {
-    modelTopology: graph.modelTopology,
-    format: graph.format,
-    generatedBy: graph.generatedBy,
-    convertedBy: graph.convertedBy,
-    signature: graph.signature,
-    weightSpecs: graph.weightsManifest.flatMap((group) => group.weights),
-    weightData: bin.buffer.slice(bin.byteOffset, bin.byteOffset + bin.byteLength),
-  };
-}
+const { loadGraph, tf } = require('./graph_model');
 
 async function main() {
   const job = JSON.parse(fs.readFileSync(process.argv[2], 'utf8'));
-  await tf.setBackend('cpu');
-  await tf.ready();
-  const model = await tfconv.loadGraphModel({ load: async () => modelArtifacts(job.model_json, job.model_bin) });
+  const model = await loadGraph(job.model_json, job.model_bin);
   const bytes = fs.readFileSync(job.input.path);
   const values = new Float32Array(bytes.buffer.slice(bytes.byteOffset, bytes.byteOffset + bytes.byteLength));
   const input = tf.tensor(values, job.input.shape, 'float32');

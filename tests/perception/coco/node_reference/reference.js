@@ -19,27 +19,7 @@
 'use strict';
 
 const fs = require('fs');
-const tf = require('@tensorflow/tfjs-core');
-require('@tensorflow/tfjs-backend-cpu');
-const tfconv = require('@tensorflow/tfjs-converter');
-
-function fileHandler(jsonPath, binPath) {
-  return {
-    load: async () => {
-      const graph = JSON.parse(fs.readFileSync(jsonPath, 'utf8'));
-      const bin = fs.readFileSync(binPath);
-      return {
-        modelTopology: graph.modelTopology,
-        format: graph.format,
-        generatedBy: graph.generatedBy,
-        convertedBy: graph.convertedBy,
-        signature: graph.signature,
-        weightSpecs: graph.weightsManifest.flatMap((group) => group.weights),
-        weightData: bin.buffer.slice(bin.byteOffset, bin.byteOffset + bin.byteLength),
-      };
-    },
-  };
-}
+const { loadGraph, tf } = require('./graph_model');
 
 function readInput(spec) {
   const bytes = fs.readFileSync(spec.path);
@@ -53,9 +33,7 @@ function readInput(spec) {
 
 async function main() {
   const job = JSON.parse(fs.readFileSync(process.argv[2], 'utf8'));
-  await tf.setBackend('cpu');
-  await tf.ready();
-  const model = await tfconv.loadGraphModel(fileHandler(job.model_json, job.model_bin));
+  const model = await loadGraph(job.model_json, job.model_bin);
   const names = job.dump_maps ? ['tower_0/detections', 'tower_0/keypoints', 'tower_0/wh'] : ['tower_0/detections'];
   const results = [];
   for (const spec of job.inputs) {
@@ -69,7 +47,7 @@ async function main() {
     }
     tf.dispose([raw, input, ...outputs]);
   }
-  const versions = { 'tfjs-core': tf.version_core, 'tfjs-converter': tfconv.version_converter, backend: tf.getBackend(), node: process.version };
+  const versions = { 'tfjs-core': tf.version_core, 'tfjs-converter': require('@tensorflow/tfjs-converter').version_converter, backend: tf.getBackend(), node: process.version };
   fs.writeFileSync(job.out, JSON.stringify({ versions, results }));
 }
 
