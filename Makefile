@@ -35,13 +35,16 @@ run-all: $(VENV)/.installed
 quick: $(VENV)/.installed
 	$(PY) -m avsim reproduce --quick
 
-# Both passes share their test files out to two processes (pytest-xdist), so both of the 2-core machine's
-# cores work; a file's tests stay in one process, so its module fixtures are built once. TEST_WORKERS=0
-# runs everything in one process; docs/performance.md has the suite's measured time.
+# The default and slow passes share their test files out to two processes (pytest-xdist), so both of the
+# 2-core machine's cores work; a file's tests stay in one process, so its module fixtures are built once.
+# The slow tests marked both_cores (two torch threads, or two workers, of their own) then run alone: beside
+# another test process they oversubscribe the cores, and a texture regeneration took 1048 s that way
+# against 163 s alone. TEST_WORKERS=0 runs everything in one process; docs/performance.md has the times.
 TEST_WORKERS ?= 2
 test: $(VENV)/.installed
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
-	$(PY) -m pytest -q -m 'slow and not regen' -n $(TEST_WORKERS) --dist loadfile --durations=20
+	$(PY) -m pytest -q -m 'slow and not regen and not both_cores' -n $(TEST_WORKERS) --dist loadfile --durations=20
+	$(PY) -m pytest -q -m 'slow and not regen and both_cores' --durations=5
 
 # Every shipped texture made again from its record (about an hour here); `make test` covers one per code path.
 test-regen: $(VENV)/.installed

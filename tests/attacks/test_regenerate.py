@@ -70,6 +70,7 @@ def mean_held_out_score(scene: EotScene, rgb: np.ndarray) -> float:
 
 
 @pytest.mark.slow
+@pytest.mark.both_cores  # a record's optimisation runs at its own torch thread count: 2 for both CI regenerates
 @pytest.mark.parametrize("name", [name if name in CI_REGENERATED else pytest.param(name, marks=pytest.mark.regen)
                                   for name in SHIPPED_TEXTURES])
 def test_a_shipped_texture_regenerates_from_its_record(tmp_path, held_out_drive_by_bank, name):

@@ -175,6 +175,7 @@ SHORT_APPROACH_M = 60
 
 
 @pytest.mark.slow
+@pytest.mark.both_cores  # two worker processes
 def test_the_quick_leaderboard_runs_every_defence(tmp_path, capsys):
     """`avsim leaderboard --quick` on the shipped board: every defence, condition and road of its quick
     subset (Town07 standard, one seed) with the learned detector (and COCO for the ensembles), on a

@@ -104,8 +104,20 @@ def test_two_cameras_at_once_detect_exactly_what_one_after_the_other_does():
     assert any(d.camera == "side" and d.class_name == "stop_sign" for dets in fast for d in dets)
 
 
+# Each town and each placement once with the clean sign, and each town under the attack: about 40 CPU-s a cell,
+# since both paths run the whole approach with both cameras. The whole grid (nine clean cells) passed when the
+# regions of interest were adopted; it was cut to these to keep `make test` inside issue 25's 30 minutes.
+FAST_PATH_CELLS = ([("clean", "town07", "far"), ("clean", "town03", "near"), ("clean", "town10", "standard")]
+                   + [("yang", town, "standard") for town in TOWNS.names()])
+
+
+def test_the_fast_path_cells_cover_every_town_and_placement():
+    clean = [(town, placement) for sign, town, placement in FAST_PATH_CELLS if sign == "clean"]
+    assert {t for t, _ in clean} == set(TOWNS.names()) and {p for _, p in clean} == set(PLACEMENTS.names())
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("sign,town,placement", [("clean", t, p) for t, p in CELLS] + [("yang", t, "standard") for t in TOWNS.names()])
+@pytest.mark.parametrize("sign,town,placement", FAST_PATH_CELLS)
 def test_fast_path_stops_where_the_whole_frame_one_camera_at_a_time_path_stops(sign, town, placement):
     # Before: every camera searched whole, one after the other. After: the default regions
     # of interest, two cameras at once. `combined` uses both cameras and the box height.
