@@ -19,6 +19,8 @@ from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument
 from avsim.validation import config_flag, number_flag, number_list_flag
 
 STEPS_FLAG = number_flag(1, 100_000, integer=True)
+# The perceptions `attack eval --detectors` measures a texture under: the networks that look at pixels.
+EVAL_DETECTORS = ("detector", "coco", "yolo", "nanodet")
 
 
 def _cmd_attack_generate(args: argparse.Namespace) -> int:
@@ -76,9 +78,9 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     for sign in signs:
         resolve_sign_texture(sign)  # fail on a bad name before rendering anything
     detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
-    unknown = [d for d in detectors if d not in ("detector", "coco", "yolo")]
+    unknown = [d for d in detectors if d not in EVAL_DETECTORS]
     if unknown or not detectors:
-        raise ConfigError(f"--detectors takes detector, coco and/or yolo, comma-separated; got '{args.detectors}'")
+        raise ConfigError(f"--detectors takes {', '.join(EVAL_DETECTORS)}, comma-separated; got '{args.detectors}'")
     from avsim.world.towns import PLACEMENTS, TOWNS
 
     placements = tuple(p.strip() for p in args.placements.split(","))
@@ -164,8 +166,8 @@ def add_commands(sub) -> None:
     ev.add_argument("--placements", default="near,standard,far",
                     help="placements of the fixed-distance tables (under the first of --detectors)")
     ev.add_argument("--detectors", default="detector",
-                    help="comma-separated perceptions the drive-bys are measured under: detector, coco, yolo "
-                         "(default detector)")
+                    help="comma-separated perceptions the drive-bys are measured under: detector, coco, yolo, "
+                         "nanodet (default detector)")
     ev.add_argument("--drives", type=number_flag(0, 10_000, integer=True), default=6,
                     help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
                          "0 skips them)")

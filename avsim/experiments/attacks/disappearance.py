@@ -117,7 +117,7 @@ def drive_lighting(drive: int, seed: int) -> dict[str, float]:
 def drive_by_frames(sign: str, detector: str = "detector", town: str = "town07", placement: str = "standard",
                     drives: int = 6, seed: int = 0, speed_kmh: float = 85.0, base: SimConfig | None = None) -> DriveBys:
     """Drive `drives` approaches past `sign` (a `--sign` value) and record every front frame
-    (see the module docstring). detector: a perception kind that runs on pixels (detector, coco, yolo)."""
+    (see the module docstring). detector: a perception kind that runs on pixels (detector, coco, yolo, nanodet)."""
     base = base or SimConfig()
     spacing_m = frame_spacing_m(speed_kmh, base.loop.control_dt_s)
     result = DriveBys(sign, detector, town, placement, base.policy.conf_threshold, base.policy.trigger_dist_m)
