@@ -39,7 +39,8 @@ quick: $(VENV)/.installed
 # 2-core machine's cores work; a file's tests stay in one process, so its module fixtures are built once.
 # The slow tests marked both_cores (two torch threads, or two workers, of their own) then run alone: beside
 # another test process they oversubscribe the cores, and a texture regeneration took 1048 s that way
-# against 163 s alone. TEST_WORKERS=0 runs everything in one process; docs/performance.md has the times.
+# (with other work on the machine) against 149 s alone. TEST_WORKERS=0 runs everything in one process;
+# docs/performance.md has the times.
 TEST_WORKERS ?= 2
 test: $(VENV)/.installed
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
