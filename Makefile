@@ -38,8 +38,8 @@ quick: $(VENV)/.installed
 # The default and slow passes share their test files out to two processes (pytest-xdist), so both of the
 # 2-core machine's cores work; a file's tests stay in one process, so its module fixtures are built once.
 # The slow tests marked both_cores (two torch threads, or two workers, of their own) then run alone: beside
-# another test process they oversubscribe the cores, and a texture regeneration took 1048 s that way
-# (with other work on the machine) against 149 s alone. TEST_WORKERS=0 runs everything in one process;
+# another test process they oversubscribe the cores: a texture regeneration took 267 s that way on a quiet
+# machine and 1048 s on a loaded one, against 149 s alone. TEST_WORKERS=0 runs everything in one process;
 # docs/performance.md has the times.
 TEST_WORKERS ?= 2
 test: $(VENV)/.installed
