@@ -26,6 +26,15 @@ CAMERA_NAMES = ("front", "side")
 EGO_GROUP = 2
 
 
+def camera_view_option() -> mujoco.MjvOption:
+    """What the car's cameras draw: every geom group but the ego shell's and group 3 (the hidden
+    physical road plane, `avsim.world.props`)."""
+    option = mujoco.MjvOption()
+    option.geomgroup[EGO_GROUP] = 0
+    option.geomgroup[3] = 0
+    return option
+
+
 @dataclass(frozen=True)
 class Intrinsics:
     """Pinhole intrinsics of a camera with square pixels and a centred principal point."""
@@ -103,9 +112,7 @@ class CameraRig:
         self._ids = {name: model.camera(camera_prefix + name).id for name in CAMERA_NAMES}
         self._rgb: OffscreenRenderer | None = None
         self._seg: OffscreenRenderer | None = None
-        self._option = mujoco.MjvOption()
-        self._option.geomgroup[EGO_GROUP] = 0
-        self._option.geomgroup[3] = 0
+        self._option = camera_view_option()
         self.reuse_last_frame = False  # see `render_rgb`
         self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
         self._photo = PhotoModel.from_config(config)

@@ -102,7 +102,7 @@ class FilamentCamera:
         self._read.set_buffer(self._pixels)
         self._camera = mujoco.MjvCamera()
         self._camera.type = int(mujoco.mjtCamera.mjCAMERA_FIXED)
-        self._keep = resources  # the renderables draw from it
+        self._resources = resources  # kept alive: the lights and renderables draw from it
         self.post_processing = True
 
     def render(self, data, camera_id: int) -> np.ndarray:
@@ -136,15 +136,13 @@ def score_town(town: str, out_path: Path) -> None:
     from avsim.realism.frame_set import SENSOR_NOISE_STD_LEVELS, render_scene, scene_config, scene_draws
     from avsim.realism.scoring import build_networks, score_frame
     from avsim.realism.settings import SETTINGS
-    from avsim.sensors.camera import EGO_GROUP
+    from avsim.sensors.camera import camera_view_option
     from avsim.sensors.noise import SensorNoise
     from avsim.world.scene import compose_scene
 
     setting = SETTINGS["baseline"]
     networks = build_networks(NETWORKS)
-    option = mujoco.MjvOption()  # the geom groups avsim's cameras show
-    option.geomgroup[EGO_GROUP] = 0
-    option.geomgroup[3] = 0
+    option = camera_view_option()
     encode = srgb_table()
     rows = []
     for scene in scene_draws((town,), DRAWS_PER_TOWN, SEED):
