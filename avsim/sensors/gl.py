@@ -19,6 +19,24 @@ from avsim.termination import raise_if_interrupted
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 
 
+def _context_with_framebuffer(model: mujoco.MjModel, width_px: int, height_px: int) -> mujoco.MjrContext:
+    """A MuJoCo rendering context whose offscreen framebuffer is exactly width_px x height_px.
+
+    MuJoCo sizes the framebuffer from the model's `visual/global` offwidth and offheight, which a
+    scene sets for its largest renderer (the supersampled segmentation). llvmpipe's cost per frame
+    grows with the framebuffer, not only with the part drawn: a 640x480 frame in a 1280x960
+    framebuffer took 6-10 % longer, with the same pixels. So each renderer gets its own size, and
+    the model's settings are put back.
+    """
+    settings = model.vis.global_
+    shared_size = settings.offwidth, settings.offheight
+    settings.offwidth, settings.offheight = width_px, height_px
+    try:
+        return mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+    finally:
+        settings.offwidth, settings.offheight = shared_size
+
+
 class OffscreenRenderer:
     """Renders a model's fixed cameras to (H, W, 3) uint8 arrays, row 0 at the top.
 
@@ -33,7 +51,7 @@ class OffscreenRenderer:
         try:
             self._gl = mujoco.GLContext(width_px, height_px)
             self._gl.make_current()
-            self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+            self._con = _context_with_framebuffer(model, width_px, height_px)
         except Exception as exc:  # the GL backends raise several unrelated types
             raise_if_interrupted(exc)  # a Ctrl-C inside EGL's ctypes calls is no broken EGL
             backend = os.environ.get("MUJOCO_GL", "egl")
