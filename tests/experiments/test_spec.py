@@ -41,15 +41,19 @@ SHIPPED["table3_coco.toml"] = SHIPPED["table3_yolo.toml"] = SHIPPED["table3_stop
 SHIPPED["table3_yolo_clusters.toml"] = SHIPPED["table3_stop_positions.toml"]
 # The COCO closed loop in Town10 under three scenes (flat, sheeting, sheeting and textured)
 SHIPPED["coco_detector_realism.toml"] = [("clean", policy) for _ in range(3 * 2) for policy in ("baseline", "adjusted")]
+# Table III's four cells that see, under four scenes (flat, textured, clusters, all)
+SCENES_OF_TABLE3_REALISM = ("flat", "textured", "clusters", "all")
+SHIPPED["table3_realism.toml"] = SHIPPED["table3_stop_positions.toml"][:4] * len(SCENES_OF_TABLE3_REALISM)
 # file name -> seeds per cell, where not 5
-SEEDS = {"coco_detector_realism.toml": 10}
+SEEDS = {"coco_detector_realism.toml": 10, "table3_realism.toml": 10}
 # file name -> the report section it declares
 REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
                "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
                "adaptive_attacker.toml": "adaptive", "wet_road.toml": "compare", "sensitivity.toml": "sensitivity",
                "coco_detector.toml": "stop_rates", "yolo_detector.toml": "stop_rates",
                "table3_coco.toml": "table3", "table3_yolo.toml": "table3",
-               "table3_yolo_clusters.toml": "table3", "coco_detector_realism.toml": "cells"}
+               "table3_yolo_clusters.toml": "table3", "coco_detector_realism.toml": "cells",
+               "table3_realism.toml": "cells"}
 # file name -> the perception its runs see through (avsim's own detector where not named)
 PERCEPTION_KIND = {"coco_detector.toml": "coco", "yolo_detector.toml": "yolo", "table3_coco.toml": "coco",
                    "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo", "coco_detector_realism.toml": "coco"}
@@ -120,6 +124,23 @@ def test_the_coco_realism_file_is_coco_detectors_town10_cells_under_three_scenes
         # coco_detector.toml's run of that cell and seed (its seeds end at 4; seed k draws the same light in any file).
         reference = config_at_seed(coco.cell(cell).config, coco.vary, run.seed)
         assert coco_runs.get((cell, run.seed), reference) == reference
+        assert run.config == with_overrides(reference, {"scenario": scenes[scene]})
+
+
+def test_the_table3_realism_file_is_table3s_cells_under_four_scenes():
+    realism = load_experiment(EXPERIMENTS_DIR / "table3_realism.toml")
+    table3 = load_experiment(TABLE3)
+    scenes = {"flat": {}, "textured": {"materials": "textured"}, "clusters": {"foliage": "clusters"},
+              "all": {"materials": "textured", "sign_materials": "sheeting", "foliage": "clusters",
+                      "sun_shadow_map_px": 4096}}
+    assert tuple(scenes) == SCENES_OF_TABLE3_REALISM
+    assert realism.vary == table3.vary
+    table3_runs = {(r.cell_name, r.seed): r.config for r in table3.runs()}
+    for run in realism.runs():
+        cell, scene = run.cell_name.rsplit(", ", 1)
+        # Table III's run of that cell and seed (its seeds end at 4; seed k draws the same light in any file).
+        reference = config_at_seed(table3.cell(cell).config, table3.vary, run.seed)
+        assert table3_runs.get((cell, run.seed), reference) == reference
         assert run.config == with_overrides(reference, {"scenario": scenes[scene]})
 
 
