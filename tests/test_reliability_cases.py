@@ -174,6 +174,7 @@ LATE = {
     "attack eval --placements near,diagonal": Case(["attack", "eval", "--placements", "near,diagonal", "--out", "{tmp}/ae"],
                                                    "diagonal"),
     "attack eval --town town99": Case(["attack", "eval", "--town", "town99", "--out", "{tmp}/ae"], "town99"),
+    "attack eval --setting glossy": Case(["attack", "eval", "--setting", "glossy", "--out", "{tmp}/ae"], "glossy"),
     "run --sign a folder": Case(["run", *ORACLE, "--sign", "{tmp}/signs/"], "is a folder", files={"signs/keep": ""}),
     "detect a folder": Case(["detect", "{tmp}/imgs"], "is a folder", files={"imgs/keep": ""}),
     "detector eval --limit -1": Case(["detector", "eval", "--limit", "-1", "--out", "{tmp}/ev"], "--limit"),

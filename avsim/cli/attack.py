@@ -16,6 +16,7 @@ from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output
 from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument
+from avsim.realism.settings import SETTINGS
 from avsim.validation import config_flag, number_flag, number_list_flag
 
 STEPS_FLAG = number_flag(1, 100_000, integer=True)
@@ -70,7 +71,7 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     from avsim.experiments.attacks.drive_by_report import plot_confidence_by_detector
     from avsim.experiments.attacks.texture_eval import evaluate_texture, fig3_grid
     from avsim.experiments.attacks.texture_eval_report import write_attack_report
-    from avsim.config import SimConfig
+    from avsim.config import SimConfig, with_overrides
     from avsim.world.scene import resolve_sign_texture
     from avsim.world.textures import TEXTURE_DIR
 
@@ -88,18 +89,22 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     TOWNS.get(args.town)
     for placement in (*placements, args.drive_placement):
         PLACEMENTS.get(placement)
-    threshold = SimConfig().policy.conf_threshold
+    setting = SETTINGS[args.setting]
+    base = with_overrides(SimConfig(), {section: dict(values) for section, values in setting.overrides.items()})
+    threshold = base.policy.conf_threshold
     out = Path(args.out)
     reports, drive_bys = [], {}
     with locked_output(out, f"avsim attack eval --out {out}"):  # one writer at a time; a failed start leaves no folder
         for sign in signs:
             print(f"measuring {sign} ...", flush=True)
-            reports.append(evaluate_texture(sign, args.town, placements, threshold, detector=detectors[0]))
+            reports.append(evaluate_texture(sign, args.town, placements, threshold, base=base, detector=detectors[0]))
             for detector in detectors if args.drives else ():
-                drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives)
-        fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, detector=detectors[0])
+                drive_bys[sign, detector] = drive_by_frames(sign, detector, args.town, args.drive_placement, args.drives,
+                                                            base=base)
+        fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, base=base, detector=detectors[0])
         figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
-        path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure)
+        path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure,
+                                   setting=setting)
     print(path.read_text())
     print(f"wrote {path}")
     return 0
@@ -172,6 +177,9 @@ def add_commands(sub) -> None:
                     help="drive-bys per texture and detector for the per-frame metrics (default 6: about 280 frames; "
                          "0 skips them)")
     ev.add_argument("--drive-placement", default="standard", help="placement of the drive-bys (default standard)")
+    ev.add_argument("--setting", choices=tuple(SETTINGS), default="baseline", metavar="NAME",
+                    help="render setting of every frame, one of avsim realism's (docs/realism.md): "
+                         f"{', '.join(SETTINGS)} (default baseline, the default renders)")
     add_output_argument(ev, "--out", kind=FOLDER, default="results/attack_eval", help="report directory")
     ev.set_defaults(func=_cmd_attack_eval)
     sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")

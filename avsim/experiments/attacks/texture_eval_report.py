@@ -8,6 +8,7 @@ from pathlib import Path
 
 from avsim.experiments.attacks.drive_by_report import disappearance_section, source_of, transfer_section
 from avsim.experiments.attacks.texture_eval import FIXED_DISTANCES_M, TextureReport, display_name
+from avsim.realism.settings import SETTINGS, RenderSetting
 
 
 def _fmt(value: float | None, digits: int = 2) -> str:
@@ -50,15 +51,17 @@ def plot_drive_by(reports: list[TextureReport], placement: str, out_path: Path) 
 
 def write_attack_report(reports: list[TextureReport], town: str, threshold: float, texture_dir: Path,
                         out_dir: Path, fig3_path: Path, drive_bys: dict | None = None,
-                        detectors_figure: Path | None = None) -> Path:
+                        detectors_figure: Path | None = None, setting: RenderSetting = SETTINGS["baseline"]) -> Path:
     """report.md: the fixed-distance tables of `reports` and, with `drive_bys` ((sign, detector)
-    -> `DriveBys`), the per-frame drive-by metrics and the transfer matrix."""
+    -> `DriveBys`), the per-frame drive-by metrics and the transfer matrix; `setting`: the render
+    setting every frame was drawn under."""
     out_dir.mkdir(parents=True, exist_ok=True)
     placements = list(reports[0].conf_at_m["front"])
     plots = [plot_drive_by(reports, p, out_dir / f"drive_by_{p}.png") for p in placements]
     lines = [f"# Attacked stop signs in MuJoCo renders ({town})", "",
              f"Shipped detector on full 640x480 frames; a detection counts if it overlaps the sign's "
              f"ground-truth box (IoU >= 0.3). Threshold for detection rate and first detection: {threshold}.", "",
+             f"Render setting: `{setting.name}` ({setting.describe()}): {setting.why}.", "",
              "| sign | SSIM | L-inf | mean conf front | mean conf side | " + " | ".join(f"first det. front {p} [m]" for p in placements) + " |",
              "|---|---|---|---|---|" + "---|" * len(placements)]
     for r in reports:

@@ -1,0 +1,35 @@
+"""`avsim attack eval --setting`: every frame of the measurement is drawn under the named render setting."""
+
+from pathlib import Path
+
+import avsim.experiments.attacks.disappearance as disappearance
+import avsim.experiments.attacks.texture_eval as texture_eval
+from avsim import cli
+
+
+def test_attack_eval_draws_every_frame_under_the_setting_and_names_it_in_the_report(tmp_path, monkeypatch):
+    seen = []
+
+    def fake_evaluate(sign, town, placements, threshold, base=None, detector="detector"):
+        seen.append(("fixed distances", base.scenario.materials, base.scenario.foliage))
+        return real_evaluate(sign, town, placements, threshold, base=base, detector=detector)
+
+    def fake_drive_by(sign, detector, town, placement, drives, base=None):
+        seen.append(("drive-bys", base.scenario.materials, base.scenario.foliage))
+        return disappearance.DriveBys(sign, detector, town, placement, base.policy.conf_threshold, base.policy.trigger_dist_m)
+
+    def fake_grid(signs, out_path, town="town07", base=None, detector="detector"):
+        seen.append(("figure", base.scenario.materials, base.scenario.foliage))
+        Path(out_path).write_bytes(b"")
+        return Path(out_path)
+
+    real_evaluate = texture_eval.evaluate_texture
+    monkeypatch.setattr(texture_eval, "evaluate_texture", fake_evaluate)
+    monkeypatch.setattr(texture_eval, "fig3_grid", fake_grid)
+    monkeypatch.setattr(disappearance, "drive_by_frames", fake_drive_by)
+    out = tmp_path / "eval"
+    assert cli.main(["attack", "eval", "--signs", "clean", "--placements", "standard", "--drives", "1",
+                     "--setting", "textured_clusters", "--out", str(out)]) == 0
+    assert seen == [(what, "textured", "clusters") for what in ("fixed distances", "drive-bys", "figure")]
+    report = (out / "report.md").read_text()
+    assert "Render setting: `textured_clusters` (scenario.materials=textured, scenario.foliage=clusters)" in report
