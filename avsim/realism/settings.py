@@ -62,5 +62,9 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
     RenderSetting("textured_sheeting_shadows",
                   {"scenario": {"materials": "textured", "sign_materials": "sheeting", "sun_shadow_map_px": SHADOW_MAP_PX}},
                   "textured, sheeting and shadows together"),
+    RenderSetting("textured_sheeting_clusters_shadows",
+                  {"scenario": {"materials": "textured", "sign_materials": "sheeting", "foliage": "clusters",
+                                "sun_shadow_map_px": SHADOW_MAP_PX}},
+                  "every scene setting together: textured, sheeting, clusters and shadows"),
 )})
 
