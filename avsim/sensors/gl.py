@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from avsim.errors import RenderError
-from avsim.sensors.culling import cullable, outside_view
+from avsim.sensors.culling import FULL_VIEW_NDC, cullable, outside_view, window_of_region
 from avsim.termination import raise_if_interrupted
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
@@ -81,12 +81,14 @@ class OffscreenRenderer:
 
         region is in image pixels (row 0 at the top), end-exclusive. Reading back is the
         larger part of a frame's cost on a software rasteriser, so callers that need a
-        small part of the image ask only for it. Returns a view of an internal buffer,
-        valid until the next call, of shape (y1 - y0, x1 - x0, 3).
+        small part of the image ask only for it. The geoms outside the region's view are
+        then left out of the render too (where culling is exact), which changes none of the
+        region's pixels. Returns a view of an internal buffer, valid until the next call, of
+        shape (y1 - y0, x1 - x0, 3).
         """
         self._gl.make_current()
         self._camera.fixedcamid = camera_id
-        self._update_scene(data, camera_id, option)
+        self._update_scene(data, camera_id, option, region)
         mujoco.mjr_render(self._rect, self._scene, self._con)
         if region is None:
             mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
@@ -97,8 +99,10 @@ class OffscreenRenderer:
         mujoco.mjr_readPixels(out, None, mujoco.MjrRect(x0, height - y1, x1 - x0, y1 - y0), self._con)
         return out[::-1]
 
-    def _update_scene(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption) -> None:
-        """Fill the scene from `data`, without the geoms `camera_id` cannot see where culling is exact.
+    def _update_scene(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption,
+                      region: tuple[int, int, int, int] | None) -> None:
+        """Fill the scene from `data`, without the geoms `camera_id` cannot see where culling is exact:
+        in the whole image, or in `region` (x0, y0, x1, y1) when only it is read back.
 
         MuJoCo leaves a geom whose colour has alpha 0 out of the scene, so the hidden geoms' alphas
         are zeroed for the update and put back at once: the model is as it was after the call.
@@ -106,7 +110,9 @@ class OffscreenRenderer:
         model = self._model
         hidden = None
         if self.cull and cullable(model, camera_id):
-            hidden = np.flatnonzero(outside_view(model, data, camera_id, self._rect.width / self._rect.height))
+            width, height = self._rect.width, self._rect.height
+            window = FULL_VIEW_NDC if region is None else window_of_region(region, width, height)
+            hidden = np.flatnonzero(outside_view(model, data, camera_id, width / height, window))
         if hidden is None or hidden.size == 0:
             mujoco.mjv_updateScene(model, data, option, self._perturb, self._camera, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
             return
