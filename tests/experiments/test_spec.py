@@ -118,14 +118,7 @@ def test_the_coco_realism_file_is_coco_detectors_town10_cells_under_three_scenes
     coco = load_experiment(EXPERIMENTS_DIR / "coco_detector.toml")
     scenes = {"flat": {}, "sheeting": {"sign_materials": "sheeting"},
               "textured": {"sign_materials": "sheeting", "materials": "textured"}}
-    assert realism.vary == coco.vary
-    coco_runs = {(r.cell_name, r.seed): r.config for r in coco.runs()}
-    for run in realism.runs():
-        cell, scene = run.cell_name.rsplit(", ", 1)
-        # coco_detector.toml's run of that cell and seed (its seeds end at 4; seed k draws the same light in any file).
-        reference = config_at_seed(coco.cell(cell).config, coco.vary, run.seed)
-        assert coco_runs.get((cell, run.seed), reference) == reference
-        assert run.config == with_overrides(reference, {"scenario": scenes[scene]})
+    _assert_runs_are_the_references_under_scenes(realism, coco, scenes)
 
 
 def test_the_table3_realism_file_is_table3s_cells_under_four_scenes():
@@ -138,14 +131,20 @@ def test_the_table3_realism_file_is_table3s_cells_under_four_scenes():
     assert scenes["all"] == {"materials": "textured", "sign_materials": "sheeting", "foliage": "clusters",
                              "sun_shadow_map_px": 4096}
     assert tuple(scenes) == SCENES_OF_TABLE3_REALISM
-    assert realism.vary == table3.vary
-    table3_runs = {(r.cell_name, r.seed): r.config for r in table3.runs()}
+    _assert_runs_are_the_references_under_scenes(realism, table3, scenes)
+
+
+def _assert_runs_are_the_references_under_scenes(realism, reference, scenes: dict[str, dict]) -> None:
+    """Each run of `realism`, a cell named "<reference cell>, <scene>", is `reference`'s run of that cell and
+    seed with the scene's scenario overrides, and nothing else changed."""
+    assert realism.vary == reference.vary
+    reference_runs = {(r.cell_name, r.seed): r.config for r in reference.runs()}
     for run in realism.runs():
         cell, scene = run.cell_name.rsplit(", ", 1)
-        # Table III's run of that cell and seed (its seeds end at 4; seed k draws the same light in any file).
-        reference = config_at_seed(table3.cell(cell).config, table3.vary, run.seed)
-        assert table3_runs.get((cell, run.seed), reference) == reference
-        assert run.config == with_overrides(reference, {"scenario": scenes[scene]})
+        # The reference file's run of that cell and seed (its seeds may end sooner; seed k draws the same light in any file).
+        expected = config_at_seed(reference.cell(cell).config, reference.vary, run.seed)
+        assert reference_runs.get((cell, run.seed), expected) == expected
+        assert run.config == with_overrides(expected, {"scenario": scenes[scene]})
 
 
 def test_runs_vary_lighting_per_seed_within_range_and_identically_across_cells():
