@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import statistics
 import time
 
 from avsim.cli.overrides import parse_set
@@ -29,6 +30,13 @@ from avsim.stats import rate_with_interval
 
 def stopped_before_sign(result: dict) -> bool:
     return result["sign_margin_m"] is not None and result["sign_margin_m"] >= 0
+
+
+def spread(values: list) -> str:
+    """"mean ± std" of the values that are not None, and how many are None."""
+    known = [v for v in values if v is not None]
+    text = f"{statistics.mean(known):.1f} ± {statistics.pstdev(known):.1f}" if known else "-"
+    return text + (f" ({len(values) - len(known)} never)" if len(known) < len(values) else "")
 
 
 def main() -> None:
@@ -49,13 +57,15 @@ def main() -> None:
         results[label] = {(r["experiment"], r["cell"], r["seed"]): r["result"] for r in records if r["status"] == "ok"}
         print(f"{label}: {len(records)} runs in {(time.monotonic() - start) / 60:.1f} min")
     cells = list(dict.fromkeys((s.experiment, s.cell) for s in specs))
+    print(f"\nStopped before the sign; where braking began and where the sign was first seen (bumper to sign, mean ± std [m]):")
     print(f"\n| cell | default | {args.setting} |\n|---|---|---|")
     for experiment, cell in cells:
-        counts = []
+        columns = []
         for label in ("default", args.setting):
             rows = [r for (e, c, _), r in results[label].items() if (e, c) == (experiment, cell)]
-            counts.append(rate_with_interval(sum(stopped_before_sign(r) for r in rows), len(rows)))
-        print(f"| {experiment} / {cell} | {counts[0]} | {counts[1]} |")
+            columns.append(f"{rate_with_interval(sum(stopped_before_sign(r) for r in rows), len(rows))}; braking from "
+                           f"{spread([r['dist_at_brake_m'] for r in rows])}, first seen {spread([r['first_detection_dist_m'] for r in rows])}")
+        print(f"| {experiment} / {cell} | {columns[0]} | {columns[1]} |")
     pairs = sorted(set(results["default"]) & set(results[args.setting]))
     changed = 0
     for key in pairs:
