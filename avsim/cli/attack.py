@@ -90,7 +90,7 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     for placement in (*placements, args.drive_placement):
         PLACEMENTS.get(placement)
     setting = SETTINGS[args.setting]
-    base = with_overrides(SimConfig(), {section: dict(values) for section, values in setting.overrides.items()})
+    base = with_overrides(SimConfig(), setting.config_overrides())
     threshold = base.policy.conf_threshold
     out = Path(args.out)
     reports, drive_bys = [], {}

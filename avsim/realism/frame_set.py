@@ -101,7 +101,7 @@ def scene_config(scene: SceneDraw, setting: RenderSetting) -> SimConfig:
     scenario = {"town": scene.town, "placement": scene.placement, "sign": "clean",
                 "sun_elevation_deg": scene.sun_elevation_deg, "sun_azimuth_deg": scene.sun_azimuth_deg,
                 "sun_intensity": scene.sun_intensity}
-    overrides = {section: dict(values) for section, values in setting.overrides.items()}
+    overrides = setting.config_overrides()
     overrides["scenario"] = {**overrides.get("scenario", {}), **scenario}
     return with_overrides(SimConfig(), overrides)
 

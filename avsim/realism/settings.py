@@ -21,6 +21,10 @@ class RenderSetting:
     overrides: Mapping[str, Mapping[str, object]]
     why: str
 
+    def config_overrides(self) -> dict[str, dict[str, object]]:
+        """The overrides as fresh nested dicts, as `avsim.config.with_overrides` takes them."""
+        return {section: dict(values) for section, values in self.overrides.items()}
+
     def describe(self) -> str:
         """"camera.supersample=2, ..." or "defaults"."""
         keys = [f"{section}.{key}={value}" for section, values in self.overrides.items() for key, value in values.items()]

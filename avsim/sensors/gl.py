@@ -19,7 +19,7 @@ from avsim.termination import raise_if_interrupted
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 
 
-def _context_with_framebuffer(model: mujoco.MjModel, width_px: int, height_px: int) -> mujoco.MjrContext:
+def context_with_framebuffer(model: mujoco.MjModel, width_px: int, height_px: int) -> mujoco.MjrContext:
     """A MuJoCo rendering context whose offscreen framebuffer is exactly width_px x height_px.
 
     MuJoCo sizes the framebuffer from the model's `visual/global` offwidth and offheight, which a
@@ -51,7 +51,7 @@ class OffscreenRenderer:
         try:
             self._gl = mujoco.GLContext(width_px, height_px)
             self._gl.make_current()
-            self._con = _context_with_framebuffer(model, width_px, height_px)
+            self._con = context_with_framebuffer(model, width_px, height_px)
         except Exception as exc:  # the GL backends raise several unrelated types
             raise_if_interrupted(exc)  # a Ctrl-C inside EGL's ctypes calls is no broken EGL
             backend = os.environ.get("MUJOCO_GL", "egl")

@@ -16,7 +16,6 @@ It is not part of avsim; it writes nothing. About a minute.
 
 from __future__ import annotations
 
-import copy
 import time
 
 import mujoco
@@ -25,7 +24,7 @@ import numpy as np
 from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop
 from avsim.sensors.camera import camera_view_option
-from avsim.sensors.gl import OffscreenRenderer
+from avsim.sensors.gl import OffscreenRenderer, context_with_framebuffer
 from avsim.sensors.regions import deployed_region_px
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
@@ -38,11 +37,9 @@ class CropRenderer:
     def __init__(self, model: mujoco.MjModel, frame_px: tuple[int, int], region_px: tuple[int, int, int, int]) -> None:
         width, height = frame_px
         x0, y0, x1, y1 = region_px
-        model = copy.deepcopy(model)  # its own offscreen size; the loop's model is left alone
-        model.vis.global_.offwidth, model.vis.global_.offheight = x1 - x0, y1 - y0
         self._gl = mujoco.GLContext(x1 - x0, y1 - y0)
         self._gl.make_current()
-        self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        self._con = context_with_framebuffer(model, x1 - x0, y1 - y0)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         self._viewport = mujoco.MjrRect(-x0, -(height - y1), width, height)
         self._read = mujoco.MjrRect(0, 0, x1 - x0, y1 - y0)

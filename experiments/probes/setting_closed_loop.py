@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     common = parse_set(args.set)
-    setting = {section: dict(values) for section, values in SETTINGS[args.setting].overrides.items()}
+    setting = SETTINGS[args.setting].config_overrides()
     specs = list(specs_for(load_study([EXPERIMENTS_DIR / f"{name}.toml" for name in args.experiments])))
     results = {}
     for label, overrides in (("default", {}), (args.setting, setting)):
