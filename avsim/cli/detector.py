@@ -17,10 +17,12 @@ def _cmd_make_data(args: argparse.Namespace) -> int:
     from avsim.perception.datagen import DataGenConfig, make_dataset
 
     config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
-                           seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format)
+                           seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format,
+                           setting=args.setting)
     with locked_sibling(args.out, f"avsim detector make-data --out {args.out}"):  # one writer at a time
         out = make_dataset(args.out, config, overwrite=args.overwrite)
-    print(f"wrote {config.n_train} training and {config.n_val} validation images to {out} ({config.label_format} labels)")
+    under = "" if config.setting == "baseline" else f", rendered under {config.setting}"
+    print(f"wrote {config.n_train} training and {config.n_val} validation images to {out} ({config.label_format} labels{under})")
     return 0
 
 
@@ -81,6 +83,9 @@ def add_commands(sub) -> None:
     data.add_argument("--format", choices=("jsonl", "coco", "yolo"), default="jsonl",
                       help="labels: jsonl (default, read by detector train/eval), coco (annotations/instances_SPLIT.json) "
                            "or yolo (labels/SPLIT/*.txt and data.yaml, for ultralytics)")
+    data.add_argument("--setting", default="baseline",
+                      help="render every image under one of `avsim realism`'s settings (default baseline: the default "
+                           "renders), e.g. textured_sheeting_clusters_shadows; the views are the same under any setting")
     data.add_argument("--overwrite", action="store_true", help="replace an existing dataset directory")
     data.set_defaults(func=_cmd_make_data)
 

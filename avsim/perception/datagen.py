@@ -15,6 +15,11 @@ Output, in DIR (written to DIR.partial and renamed when complete):
   generation.json                 the generation settings
 With `label_format` "coco" or "yolo", the labels are written in that format instead of the
 JSON lines (`avsim.perception.dataset_formats`).
+
+`setting` renders every image under one of `avsim realism`'s render settings (`avsim.realism.settings`:
+textured surfaces, sheeting, see-through crowns, shadows, the photographic stages), to train or score a
+detector on those renders. The scenes, poses and lighting are drawn from the seed alone, so two datasets
+of one seed under two settings show the same views.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from avsim.errors import ConfigError
 from avsim.validation import check_ranges, ranged
 from avsim.outputs import write_image, write_text
 from avsim.perception.dataset_formats import FORMATS, SPLITS, write_labels
+from avsim.realism.settings import SETTINGS
 from avsim.sensors.camera import CameraRig
 from avsim.vehicle.physics import Vehicle
 from avsim.workers import init_worker, terminate_workers
@@ -68,10 +74,19 @@ class DataGenConfig:
     max_dist_m: float = ranged(80.0, 10, 300, unit="m", note="the approach road is 320 m long")
     # How the labels are written: "jsonl" (avsim's own), "coco" or "yolo" (dataset_formats).
     label_format: str = "jsonl"
+    # The render setting every image is drawn under (avsim.realism.settings; "baseline": the defaults).
+    setting: str = "baseline"
 
     def __post_init__(self) -> None:
         if self.label_format not in FORMATS:
             raise ConfigError(f"--format must be one of {', '.join(FORMATS)}, got {self.label_format!r}")
+        if self.setting not in SETTINGS:
+            raise ConfigError(f"unknown --setting {self.setting!r}; choose from {', '.join(SETTINGS)}")
+        camera = _with_setting(SimConfig(), self.setting).camera
+        if (camera.width_px, camera.height_px) != IMAGE_SIZE_PX:
+            raise ConfigError(f"--setting {self.setting} renders {camera.width_px}x{camera.height_px}, but make-data "
+                              f"renders at the study camera's {IMAGE_SIZE_PX[0]}x{IMAGE_SIZE_PX[1]}; choose a setting "
+                              "that keeps the camera's size")
         check_ranges(self, "make-data")
         if self.n_train + self.n_val == 0:
             raise ConfigError(f"need a positive number of images, got train={self.n_train}, val={self.n_val}")
@@ -87,7 +102,11 @@ class SceneJob:
     seed: int
 
 
-def _scene_config(rng: np.random.Generator, split: str) -> SimConfig:
+def _with_setting(config: SimConfig, setting: str) -> SimConfig:
+    return with_overrides(config, SETTINGS[setting].config_overrides())
+
+
+def _scene_config(rng: np.random.Generator, split: str, setting: str = "baseline") -> SimConfig:
     if split == "val":
         layout_seed = VAL_LAYOUT_SEED
         elevation = float(rng.uniform(*VAL_SUN_ELEVATION_DEG))
@@ -99,7 +118,7 @@ def _scene_config(rng: np.random.Generator, split: str) -> SimConfig:
         elevation = elevation + (high - low) if elevation >= low else elevation
     fog = rng.random() < 0.3
     fog_end = float(rng.uniform(90.0, 300.0)) if fog else 0.0
-    return with_overrides(SimConfig(), {"scenario": {
+    drawn = with_overrides(SimConfig(), {"scenario": {
         "town": str(rng.choice(TOWNS.names())),
         "placement": str(rng.choice(PLACEMENTS.names())),
         "layout_seed": layout_seed,
@@ -109,6 +128,7 @@ def _scene_config(rng: np.random.Generator, split: str) -> SimConfig:
         "fog_start_m": float(rng.uniform(0, 20)) if fog else 0.0,
         "fog_end_m": fog_end,
     }})
+    return _with_setting(drawn, setting)
 
 
 def _add_red_distractors(rng: np.random.Generator):
@@ -163,10 +183,11 @@ def _degrade(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0) -> list[dict]:
-    """Render one scene's images into out_dir/images/<split>/ and return their label records."""
+def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0, setting: str = "baseline") -> list[dict]:
+    """Render one scene's images into out_dir/images/<split>/ under the render `setting` and return their
+    label records."""
     rng = np.random.default_rng(job.seed)
-    config = _scene_config(rng, job.split)
+    config = _scene_config(rng, job.split, setting)
     target_kind = str(rng.choice(TARGET_KINDS, p=TARGET_KIND_WEIGHTS))
     spec, info = compose_scene(config, target_kind, _add_red_distractors(rng))
     model = spec.compile()
@@ -230,9 +251,9 @@ def _jobs(config: DataGenConfig) -> list[SceneJob]:
     return jobs
 
 
-def _render_job(args: tuple[SceneJob, str, float]) -> tuple[SceneJob, list[dict]]:
-    job, out_dir, max_dist_m = args
-    return job, render_scene(job, out_dir, max_dist_m)
+def _render_job(args: tuple[SceneJob, str, float, str]) -> tuple[SceneJob, list[dict]]:
+    job, out_dir, max_dist_m, setting = args
+    return job, render_scene(job, out_dir, max_dist_m, setting)
 
 
 def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: bool = False) -> Path:
@@ -262,7 +283,7 @@ def _render_dataset(partial: Path, config: DataGenConfig, out: Path) -> None:
         (partial / "images" / split).mkdir(parents=True)
     jobs = _jobs(config)
     results: dict[int, list[dict]] = {}
-    work = [(job, str(partial), config.max_dist_m) for job in jobs]
+    work = [(job, str(partial), config.max_dist_m, config.setting) for job in jobs]
     with tqdm(total=config.n_train + config.n_val, desc="rendering", unit="img") as bar:
         if config.workers == 1:
             outputs = map(_render_job, work)

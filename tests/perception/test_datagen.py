@@ -77,3 +77,22 @@ def test_a_stop_mid_render_leaves_no_half_made_dataset(tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         make_dataset(tmp_path / "signs", TINY)
     assert rendered and list(tmp_path.iterdir()) == []
+
+
+def test_a_setting_renders_the_same_views_with_other_pixels(tiny_dataset, tmp_path):
+    textured = make_dataset(tmp_path / "textured", DataGenConfig(**{**TINY.__dict__, "setting": "textured"}))
+    assert json.loads((textured / "generation.json").read_text())["setting"] == "textured"
+    for split in ("train", "val"):
+        base, under = _records(tiny_dataset, split), _records(textured, split)
+        assert [r["meta"] for r in under] == [r["meta"] for r in base]  # same scenes, poses and lighting
+        assert [r["classes"] for r in under] == [r["classes"] for r in base]
+    changed = [r["image"] for r in _records(textured, "train")
+               if (textured / r["image"]).read_bytes() != (tiny_dataset / r["image"]).read_bytes()]
+    assert len(changed) == 6
+
+
+@pytest.mark.parametrize("setting, message", [("texturd", "unknown --setting 'texturd'"),
+                                              ("automotive_1080p", "renders 1920x1080")])
+def test_a_setting_that_is_unknown_or_changes_the_image_size_is_refused(setting, message):
+    with pytest.raises(ConfigError, match=message):
+        DataGenConfig(setting=setting)
