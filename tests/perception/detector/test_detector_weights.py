@@ -97,3 +97,16 @@ def test_export_keeps_the_weights_and_drops_the_training_state(tmp_path):
     with torch.no_grad():
         for a, b in zip(model.eval()(x), loaded(x)):
             assert torch.equal(a, b)
+
+
+def test_the_scene_trained_weights_load_beside_the_shipped_ones_and_differ():
+    """models/sign_detector_scenes.pt: the same network retrained on renders under every scene setting
+    (docs/realism.md, "The own detector retrained on the full scene")."""
+    from avsim.perception.detector.weights import SHIPPED_WEIGHTS
+
+    shipped, shipped_meta = load_weights(SHIPPED_WEIGHTS)
+    scenes, scenes_meta = load_weights(SHIPPED_WEIGHTS.with_name("sign_detector_scenes.pt"))
+    assert scenes_meta["arch"] == shipped_meta["arch"] and scenes_meta["input_size"] == shipped_meta["input_size"]
+    assert scenes_meta["data_dir"] == "data/signs_all" and scenes_meta["epochs"] == 6
+    differ = [name for name, tensor in scenes.state_dict().items() if not torch.equal(tensor, shipped.state_dict()[name])]
+    assert len(differ) > 10
