@@ -15,10 +15,13 @@ from avsim.validation import number_flag
 
 def _cmd_make_data(args: argparse.Namespace) -> int:
     from avsim.perception.datagen import DataGenConfig, make_dataset
+    from avsim.realism.settings import SETTINGS
 
+    if args.setting not in SETTINGS:
+        raise ConfigError(f"unknown --setting {args.setting!r}; choose from {', '.join(SETTINGS)}")
     config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
                            seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format,
-                           setting=args.setting)
+                           setting=args.setting, setting_overrides=SETTINGS[args.setting].config_overrides())
     with locked_sibling(args.out, f"avsim detector make-data --out {args.out}"):  # one writer at a time
         out = make_dataset(args.out, config, overwrite=args.overwrite)
     under = "" if config.setting == "baseline" else f", rendered under {config.setting}"

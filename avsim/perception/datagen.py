@@ -16,10 +16,10 @@ Output, in DIR (written to DIR.partial and renamed when complete):
 With `label_format` "coco" or "yolo", the labels are written in that format instead of the
 JSON lines (`avsim.perception.dataset_formats`).
 
-`setting` renders every image under one of `avsim realism`'s render settings (`avsim.realism.settings`:
-textured surfaces, sheeting, see-through crowns, shadows, the photographic stages), to train or score a
-detector on those renders. The scenes, poses and lighting are drawn from the seed alone, so two datasets
-of one seed under two settings show the same views.
+`setting_overrides` renders every image under one of `avsim realism`'s render settings (textured surfaces,
+sheeting, see-through crowns, shadows, the photographic stages; the command line resolves `--setting NAME`
+to them), to train or score a detector on those renders. The scenes, poses and lighting are drawn from the
+seed alone, so two datasets of one seed under two settings show the same views.
 """
 
 from __future__ import annotations
@@ -29,7 +29,9 @@ import math
 import os
 import shutil
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
+from types import MappingProxyType
+from typing import Any, Mapping
 from pathlib import Path
 
 import cv2
@@ -41,7 +43,6 @@ from avsim.errors import ConfigError
 from avsim.validation import check_ranges, ranged
 from avsim.outputs import write_image, write_text
 from avsim.perception.dataset_formats import FORMATS, SPLITS, write_labels
-from avsim.realism.settings import SETTINGS
 from avsim.sensors.camera import CameraRig
 from avsim.vehicle.physics import Vehicle
 from avsim.workers import init_worker, terminate_workers
@@ -54,8 +55,10 @@ VAL_SUN_ELEVATION_DEG = (40.0, 55.0)
 TARGET_KINDS = ("stop_sign", "yield", "speed_limit")
 TARGET_KIND_WEIGHTS = (0.55, 0.2, 0.25)
 MIN_LABEL_HEIGHT_PX = 4.0
-# Every image is rendered at the default camera's resolution (`_scene_config` changes only the scenario).
+# Every image is rendered at the default camera's resolution: `_scene_config` changes the scenario and a setting's
+# camera stages, and DataGenConfig refuses a setting that changes the size.
 IMAGE_SIZE_PX = (CameraConfig().width_px, CameraConfig().height_px)
+DEFAULT_RENDERS: Mapping[str, Mapping[str, Any]] = MappingProxyType({})  # no setting's overrides
 
 
 @dataclass(frozen=True)
@@ -74,15 +77,15 @@ class DataGenConfig:
     max_dist_m: float = ranged(80.0, 10, 300, unit="m", note="the approach road is 320 m long")
     # How the labels are written: "jsonl" (avsim's own), "coco" or "yolo" (dataset_formats).
     label_format: str = "jsonl"
-    # The render setting every image is drawn under (avsim.realism.settings; "baseline": the defaults).
+    # The render setting every image is drawn under: its name (recorded in generation.json) and its config
+    # overrides, {section: {key: value}} (avsim.realism.settings; "baseline" and {}: the default renders).
     setting: str = "baseline"
+    setting_overrides: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.label_format not in FORMATS:
             raise ConfigError(f"--format must be one of {', '.join(FORMATS)}, got {self.label_format!r}")
-        if self.setting not in SETTINGS:
-            raise ConfigError(f"unknown --setting {self.setting!r}; choose from {', '.join(SETTINGS)}")
-        camera = _with_setting(SimConfig(), self.setting).camera
+        camera = _with_setting(SimConfig(), self.setting_overrides).camera
         if (camera.width_px, camera.height_px) != IMAGE_SIZE_PX:
             raise ConfigError(f"--setting {self.setting} renders {camera.width_px}x{camera.height_px}, but make-data "
                               f"renders at the study camera's {IMAGE_SIZE_PX[0]}x{IMAGE_SIZE_PX[1]}; choose a setting "
@@ -102,11 +105,12 @@ class SceneJob:
     seed: int
 
 
-def _with_setting(config: SimConfig, setting: str) -> SimConfig:
-    return with_overrides(config, SETTINGS[setting].config_overrides())
+def _with_setting(config: SimConfig, setting_overrides: Mapping[str, Mapping[str, Any]]) -> SimConfig:
+    return with_overrides(config, {section: dict(values) for section, values in setting_overrides.items()})
 
 
-def _scene_config(rng: np.random.Generator, split: str, setting: str = "baseline") -> SimConfig:
+def _scene_config(rng: np.random.Generator, split: str,
+                  setting_overrides: Mapping[str, Mapping[str, Any]] = DEFAULT_RENDERS) -> SimConfig:
     if split == "val":
         layout_seed = VAL_LAYOUT_SEED
         elevation = float(rng.uniform(*VAL_SUN_ELEVATION_DEG))
@@ -128,7 +132,7 @@ def _scene_config(rng: np.random.Generator, split: str, setting: str = "baseline
         "fog_start_m": float(rng.uniform(0, 20)) if fog else 0.0,
         "fog_end_m": fog_end,
     }})
-    return _with_setting(drawn, setting)
+    return _with_setting(drawn, setting_overrides)
 
 
 def _add_red_distractors(rng: np.random.Generator):
@@ -183,11 +187,12 @@ def _degrade(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0, setting: str = "baseline") -> list[dict]:
-    """Render one scene's images into out_dir/images/<split>/ under the render `setting` and return their
-    label records."""
+def render_scene(job: SceneJob, out_dir: str, max_dist_m: float = 80.0,
+                 setting_overrides: Mapping[str, Mapping[str, Any]] = DEFAULT_RENDERS) -> list[dict]:
+    """Render one scene's images into out_dir/images/<split>/ under a render setting's config overrides
+    and return their label records."""
     rng = np.random.default_rng(job.seed)
-    config = _scene_config(rng, job.split, setting)
+    config = _scene_config(rng, job.split, setting_overrides)
     target_kind = str(rng.choice(TARGET_KINDS, p=TARGET_KIND_WEIGHTS))
     spec, info = compose_scene(config, target_kind, _add_red_distractors(rng))
     model = spec.compile()
@@ -251,9 +256,9 @@ def _jobs(config: DataGenConfig) -> list[SceneJob]:
     return jobs
 
 
-def _render_job(args: tuple[SceneJob, str, float, str]) -> tuple[SceneJob, list[dict]]:
-    job, out_dir, max_dist_m, setting = args
-    return job, render_scene(job, out_dir, max_dist_m, setting)
+def _render_job(args: tuple[SceneJob, str, float, Mapping]) -> tuple[SceneJob, list[dict]]:
+    job, out_dir, max_dist_m, setting_overrides = args
+    return job, render_scene(job, out_dir, max_dist_m, setting_overrides)
 
 
 def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: bool = False) -> Path:
@@ -283,7 +288,7 @@ def _render_dataset(partial: Path, config: DataGenConfig, out: Path) -> None:
         (partial / "images" / split).mkdir(parents=True)
     jobs = _jobs(config)
     results: dict[int, list[dict]] = {}
-    work = [(job, str(partial), config.max_dist_m, config.setting) for job in jobs]
+    work = [(job, str(partial), config.max_dist_m, config.setting_overrides) for job in jobs]
     with tqdm(total=config.n_train + config.n_val, desc="rendering", unit="img") as bar:
         if config.workers == 1:
             outputs = map(_render_job, work)

@@ -7,6 +7,7 @@ import pytest
 from avsim.errors import ConfigError
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.datagen import VAL_LAYOUT_SEED, VAL_SUN_ELEVATION_DEG, DataGenConfig, make_dataset
+from avsim.realism.settings import SETTINGS
 
 TINY = DataGenConfig(n_train=6, n_val=4, images_per_scene=3, seed=7, workers=1)
 
@@ -80,7 +81,9 @@ def test_a_stop_mid_render_leaves_no_half_made_dataset(tmp_path, monkeypatch):
 
 
 def test_a_setting_renders_the_same_views_with_other_pixels(tiny_dataset, tmp_path):
-    textured = make_dataset(tmp_path / "textured", DataGenConfig(**{**TINY.__dict__, "setting": "textured"}))
+    overrides = SETTINGS["textured"].config_overrides()
+    textured = make_dataset(tmp_path / "textured", DataGenConfig(**{**TINY.__dict__, "setting": "textured",
+                                                                   "setting_overrides": overrides}))
     assert json.loads((textured / "generation.json").read_text())["setting"] == "textured"
     for split in ("train", "val"):
         base, under = _records(tiny_dataset, split), _records(textured, split)
@@ -91,8 +94,15 @@ def test_a_setting_renders_the_same_views_with_other_pixels(tiny_dataset, tmp_pa
     assert len(changed) == 6
 
 
-@pytest.mark.parametrize("setting, message", [("texturd", "unknown --setting 'texturd'"),
-                                              ("automotive_1080p", "renders 1920x1080")])
-def test_a_setting_that_is_unknown_or_changes_the_image_size_is_refused(setting, message):
-    with pytest.raises(ConfigError, match=message):
-        DataGenConfig(setting=setting)
+def test_a_setting_that_changes_the_image_size_is_refused():
+    with pytest.raises(ConfigError, match="renders 1920x1080"):
+        DataGenConfig(setting="automotive_1080p", setting_overrides=SETTINGS["automotive_1080p"].config_overrides())
+
+
+def test_an_unknown_setting_is_one_line_and_exit_2_before_anything_is_written(tmp_path, capsys):
+    from avsim import cli
+
+    assert cli.main(["detector", "make-data", "--out", str(tmp_path / "signs"), "--setting", "texturd"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "unknown --setting 'texturd'" in err, err
+    assert list(tmp_path.iterdir()) == []
