@@ -85,7 +85,7 @@ class DataGenConfig:
     def __post_init__(self) -> None:
         if self.label_format not in FORMATS:
             raise ConfigError(f"--format must be one of {', '.join(FORMATS)}, got {self.label_format!r}")
-        camera = _with_setting(SimConfig(), self.setting_overrides).camera
+        camera = with_overrides(SimConfig(), self.setting_overrides).camera
         if (camera.width_px, camera.height_px) != IMAGE_SIZE_PX:
             raise ConfigError(f"--setting {self.setting} renders {camera.width_px}x{camera.height_px}, but make-data "
                               f"renders at the study camera's {IMAGE_SIZE_PX[0]}x{IMAGE_SIZE_PX[1]}; choose a setting "
@@ -103,10 +103,6 @@ class SceneJob:
     first_index: int
     n_images: int
     seed: int
-
-
-def _with_setting(config: SimConfig, setting_overrides: Mapping[str, Mapping[str, Any]]) -> SimConfig:
-    return with_overrides(config, {section: dict(values) for section, values in setting_overrides.items()})
 
 
 def _scene_config(rng: np.random.Generator, split: str,
@@ -132,7 +128,7 @@ def _scene_config(rng: np.random.Generator, split: str,
         "fog_start_m": float(rng.uniform(0, 20)) if fog else 0.0,
         "fog_end_m": fog_end,
     }})
-    return _with_setting(drawn, setting_overrides)
+    return with_overrides(drawn, setting_overrides)
 
 
 def _add_red_distractors(rng: np.random.Generator):
