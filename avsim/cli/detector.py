@@ -10,15 +10,13 @@ from avsim.cli.flags import INT_FLAG, SEED_FLAG
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output, locked_sibling
 from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument, check_output_file
+from avsim.realism.settings import SETTINGS
 from avsim.validation import number_flag
 
 
 def _cmd_make_data(args: argparse.Namespace) -> int:
     from avsim.perception.datagen import DataGenConfig, make_dataset
-    from avsim.realism.settings import SETTINGS
 
-    if args.setting not in SETTINGS:
-        raise ConfigError(f"unknown --setting {args.setting!r}; choose from {', '.join(SETTINGS)}")
     config = DataGenConfig(n_train=args.train, n_val=args.val, images_per_scene=args.images_per_scene,
                            seed=args.seed, workers=args.workers, max_dist_m=args.max_dist_m, label_format=args.format,
                            setting=args.setting, setting_overrides=SETTINGS[args.setting].config_overrides())
@@ -86,9 +84,9 @@ def add_commands(sub) -> None:
     data.add_argument("--format", choices=("jsonl", "coco", "yolo"), default="jsonl",
                       help="labels: jsonl (default, read by detector train/eval), coco (annotations/instances_SPLIT.json) "
                            "or yolo (labels/SPLIT/*.txt and data.yaml, for ultralytics)")
-    data.add_argument("--setting", default="baseline",
-                      help="render every image under one of `avsim realism`'s settings (default baseline: the default "
-                           "renders), e.g. textured_sheeting_clusters_shadows; the views are the same under any setting")
+    data.add_argument("--setting", choices=tuple(SETTINGS), default="baseline", metavar="NAME",
+                      help=f"render every image under one of `avsim realism`'s settings: {', '.join(SETTINGS)} (default "
+                           "baseline, the default renders); the views are the same under any setting")
     data.add_argument("--overwrite", action="store_true", help="replace an existing dataset directory")
     data.set_defaults(func=_cmd_make_data)
 
