@@ -4,8 +4,8 @@ Per frame: letterbox (identity for 640x480 at the deployed size) -> fused networ
 channels-last memory under `torch.inference_mode()` -> decode + OpenCV NMS -> boxes mapped
 back to image pixels and clipped to the image. With a region of interest, the network runs
 on a crop around it (`roi`) and only the region's cells are decoded. Uses min(2, cpu count)
-torch threads (a process-wide torch setting; pass num_threads=1 when another busy process
-shares the two cores: then one thread is faster, see `model`).
+torch threads (a process-wide torch setting; `import avsim` shortens libgomp's busy-wait so that
+two threads beside another busy process do not spin, docs/performance.md).
 
 Precision: "fp32", or "bf16", where the convolutions run under bfloat16 autocast (oneDNN's
 AVX-512 BF16 dot products, summing in float32; the maps are decoded in float32). bf16 scores
