@@ -91,6 +91,13 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
         PLACEMENTS.get(placement)
     setting = SETTINGS[args.setting]
     base = with_overrides(SimConfig(), setting.config_overrides())
+    if args.weights:
+        if "detector" not in detectors:
+            raise ConfigError("--weights sets the own detector's weights; add detector to --detectors, or drop --weights")
+        from avsim.perception.detector.weights import load_checkpoint
+
+        load_checkpoint(args.weights)  # missing or corrupt weights fail before anything is rendered
+        base = with_overrides(base, {"perception": {"weights_path": args.weights}})
     threshold = base.policy.conf_threshold
     out = Path(args.out)
     reports, drive_bys = [], {}
@@ -104,7 +111,7 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
         fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, base=base, detector=detectors[0])
         figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
         path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure,
-                                   setting=setting)
+                                   setting=setting, perception=detectors[0], weights=args.weights)
     print(path.read_text())
     print(f"wrote {path}")
     return 0
@@ -180,6 +187,9 @@ def add_commands(sub) -> None:
     ev.add_argument("--setting", choices=tuple(SETTINGS), default="baseline", metavar="NAME",
                     help="render setting of every frame, one of avsim realism's (docs/realism.md): "
                          f"{', '.join(SETTINGS)} (default baseline, the default renders)")
+    add_input_argument(ev, "--weights", default="",
+                       help="the own detector's weights for --detectors detector (default: the shipped "
+                            "models/sign_detector.pt), e.g. models/sign_detector_scenes.pt, retrained on the full scene")
     add_output_argument(ev, "--out", kind=FOLDER, default="results/attack_eval", help="report directory")
     ev.set_defaults(func=_cmd_attack_eval)
     sw = asub.add_parser("sweep", help="attack strength against camouflage over a range of budgets")

@@ -49,17 +49,26 @@ def plot_drive_by(reports: list[TextureReport], placement: str, out_path: Path) 
     return out_path
 
 
+def _perception_label(perception: str, weights: str) -> str:
+    """Who scored the fixed-distance tables, e.g. "The own detector (models/sign_detector.pt)"."""
+    if perception != "detector":
+        return f"The `{perception}` network"
+    return f"The own detector ({weights or 'the shipped models/sign_detector.pt'})"
+
+
 def write_attack_report(reports: list[TextureReport], town: str, threshold: float, texture_dir: Path,
                         out_dir: Path, fig3_path: Path, drive_bys: dict | None = None,
-                        detectors_figure: Path | None = None, setting: RenderSetting = SETTINGS["baseline"]) -> Path:
+                        detectors_figure: Path | None = None, setting: RenderSetting = SETTINGS["baseline"],
+                        perception: str = "detector", weights: str = "") -> Path:
     """report.md: the fixed-distance tables of `reports` and, with `drive_bys` ((sign, detector)
     -> `DriveBys`), the per-frame drive-by metrics and the transfer matrix; `setting`: the render
-    setting every frame was drawn under."""
+    setting every frame was drawn under; `perception`: the kind the fixed-distance tables were
+    measured under; `weights`: the own detector's weights file ("" for the shipped ones)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     placements = list(reports[0].conf_at_m["front"])
     plots = [plot_drive_by(reports, p, out_dir / f"drive_by_{p}.png") for p in placements]
     lines = [f"# Attacked stop signs in MuJoCo renders ({town})", "",
-             f"Shipped detector on full 640x480 frames; a detection counts if it overlaps the sign's "
+             f"{_perception_label(perception, weights)} on full 640x480 frames; a detection counts if it overlaps the sign's "
              f"ground-truth box (IoU >= 0.3). Threshold for detection rate and first detection: {threshold}.", "",
              f"Render setting: `{setting.name}` ({setting.describe()}): {setting.why}.", "",
              "| sign | SSIM | L-inf | mean conf front | mean conf side | " + " | ".join(f"first det. front {p} [m]" for p in placements) + " |",
