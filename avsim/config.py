@@ -354,6 +354,15 @@ class PerceptionConfig:
     # Its scores differ from fp32's by bf16 rounding: `python -m avsim.perception.detector.precision_agreement`
     # measures recall per 5-m bin under both. It needs a CPU on which oneDNN runs bf16 (AVX-512).
     detector_precision: str = "fp32"
+    # `detector`, under a camera larger than the network's trained input (camera.preset =
+    # "automotive_1080p"): also search the region of interest at the camera's own pixels, besides the
+    # frame letterboxed down to the input, and merge the two by NMS (perception/detector/infer.py).
+    # The letterbox alone shrinks a 1920x1080 frame 3x, so the sharper camera saw less far than the
+    # study's (first detection 68 m against 130 m); the native pass finds the far signs, at the cost of a
+    # second, larger network pass, and near signs, larger at full resolution than any in the training
+    # frames, still come from the letterboxed pass. False: the letterbox alone, as before. No effect at
+    # the study's 640x480, where the frame is the input.
+    detector_native_pixels: bool = True
     # Gaussian read noise added to every frame the detector sees [8-bit levels, 1 sigma]; the
     # pattern is drawn from scenario.seed, so seeds differ in their noise. The oracle reads
     # segmentation and has none.

@@ -138,7 +138,7 @@ def instrument(timer: StageTimer, loop: Any) -> None:
         timer.wrap(perception.noise, "apply", "sensor noise")
     detector = perception.detector
     if hasattr(detector, "_maps"):  # the own detector: its three parts
-        timer.wrap(detector, "_prepare", "detector pre-processing")
+        timer.wrap(detector, "_passes", "detector pre-processing")
         timer.wrap(detector, "_maps", "detector network")
         timer.wrap(detector, "detect_many", "detector post-processing")
     else:

@@ -38,7 +38,8 @@ def _detector_frames(config: PerceptionConfig) -> "FrameDetector":
     from avsim.perception.detector.weights import resolve_weights_path
 
     return SignDetectorRunner(resolve_weights_path(config.weights_path), conf_threshold=config.min_confidence,
-                              num_threads=config.threads, precision=config.detector_precision)
+                              num_threads=config.threads, precision=config.detector_precision,
+                              native_pixels=config.detector_native_pixels)
 
 
 def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
@@ -158,7 +159,7 @@ def _frame_perception(config: PerceptionConfig, camera: CameraConfig, model: muj
 # an ensemble reads the keys of each network in `ensemble_members`.
 FRAME_KEYS = ("min_box_height_px", "threads", "sensor_noise_std", "front_roi_px", "side_roi_px", "purify")
 NETWORK_KEYS = {
-    "detector": ("min_confidence", "weights_path", "detector_precision"),
+    "detector": ("min_confidence", "weights_path", "detector_precision", "detector_native_pixels"),
     "coco": ("min_confidence", "coco_input", "coco_upscale", "coco_precision"),
     "yolo": ("min_confidence", "yolo_cfg", "yolo_weights", "yolo_names", "yolo_input", "yolo_upscale", "yolo_precision"),
     "nanodet": ("min_confidence",),

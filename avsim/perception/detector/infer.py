@@ -7,6 +7,14 @@ on a crop around it (`roi`) and only the region's cells are decoded. Uses min(2,
 torch threads (a process-wide torch setting; `import avsim` shortens libgomp's busy-wait so that
 two threads beside another busy process do not spin, docs/performance.md).
 
+Frames larger than the network's input (a camera preset beyond the study's 640x480): the frame is
+letterboxed down to the input, as the network was trained, which shrinks a 1920x1080 frame 3x and
+costs the far signs their pixels. With `native_pixels` the runner also searches the region at the
+frame's own pixels (the network is fully convolutional; the crop is `roi.crop_for`'s, or the whole
+frame padded to a multiple of 32), and merges both passes' boxes by class-aware NMS. The native pass
+finds the far signs; the letterboxed pass keeps the near ones, which at the frame's own pixels are
+larger than any sign in the training frames. A frame at the input size is searched once, as before.
+
 Precision: "fp32", or "bf16", where the convolutions run under bfloat16 autocast (oneDNN's
 AVX-512 BF16 dot products, summing in float32; the maps are decoded in float32). bf16 scores
 differ from fp32's by bf16 rounding (`avsim.perception.detector.precision_agreement` measures by
@@ -25,6 +33,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -32,11 +41,22 @@ import torch
 from avsim.config import DETECTOR_PRECISIONS
 from avsim.perception.base import Detection, touches_border
 from avsim.perception.detector.letterbox import Letterbox, check_image, fit, letterbox, to_tensor, warp
-from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode
-from avsim.perception.detector.roi import clip_region, crop_for
+from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode, nms
+from avsim.perception.detector.roi import ALIGN_PX, clip_region, crop_for
 from avsim.perception.detector.weights import load_weights
 
 DEFAULT_CONF_THRESHOLD = 0.3
+
+
+class _Pass(NamedTuple):
+    """One network input made from a frame: its pixels (H_in, W_in, 3) uint8, the letterbox that maps
+    decoded boxes back to the frame, where the input starts in the letterboxed frame [px], and the region
+    in those pixels (None: no region)."""
+
+    pixels: np.ndarray
+    box: Letterbox
+    origin_px: tuple[int, int]
+    region_in: tuple[float, float, float, float] | None
 
 
 class SignDetectorRunner:
@@ -44,10 +64,11 @@ class SignDetectorRunner:
 
     def __init__(self, weights_path: str | Path, conf_threshold: float = DEFAULT_CONF_THRESHOLD,
                  iou_threshold: float = IOU_THRESHOLD, max_detections: int = MAX_DETECTIONS,
-                 num_threads: int | None = None, precision: str = "fp32") -> None:
+                 num_threads: int | None = None, precision: str = "fp32", native_pixels: bool = False) -> None:
         if precision not in DETECTOR_PRECISIONS:
             raise ValueError(f"precision must be one of {', '.join(DETECTOR_PRECISIONS)}, got {precision!r}")
         self.precision = precision
+        self.native_pixels = native_pixels
         torch.set_num_threads(num_threads if num_threads is not None else max(1, min(2, os.cpu_count() or 1)))
         model, self.meta = load_weights(weights_path)
         self.model = model.fuse().to(memory_format=torch.channels_last)
@@ -57,9 +78,9 @@ class SignDetectorRunner:
         self.iou_threshold = iou_threshold
         self.max_detections = max_detections
 
-    def _to_detections(self, det: torch.Tensor, box: Letterbox, image_w: int, image_h: int, camera: str) -> list[Detection]:
-        det = det.numpy()
-        boxes = np.clip(box.to_image(det[:, :4]), 0.0, [image_w, image_h, image_w, image_h])
+    def _to_detections(self, det: np.ndarray, image_w: int, image_h: int, camera: str) -> list[Detection]:
+        """(D, 6) detections [frame px, score, class] -> Detections, boxes clipped to the frame."""
+        boxes = np.clip(det[:, :4], 0.0, [image_w, image_h, image_w, image_h])
         out = []
         for (x0, y0, x1, y1), score, cls in zip(boxes, det[:, 4], det[:, 5]):
             xyxy = (float(x0), float(y0), float(x1), float(y1))
@@ -76,7 +97,7 @@ class SignDetectorRunner:
         threshold = self.conf_threshold if conf_threshold is None else conf_threshold
         with torch.inference_mode():
             detections = decode(self._maps(batch), threshold, self.model.strides, self.iou_threshold, self.max_detections)
-        return [self._to_detections(det, box, image.shape[1], image.shape[0], camera)
+        return [self._to_detections(_in_frame(det, box), image.shape[1], image.shape[0], camera)
                 for det, (_, box), image in zip(detections, letterboxed, images_rgb)]
 
     def detect(self, image_rgb: np.ndarray, camera: str, conf_threshold: float | None = None,
@@ -106,37 +127,49 @@ class SignDetectorRunner:
         one network call; under fp32 each frame has a call of its own.
         """
         threshold = self.conf_threshold if conf_threshold is None else conf_threshold
-        prepared = [self._prepare(image, region) for image, _, region in frames]
+        passes = [(frame_index, one_pass) for frame_index, (image, _, region) in enumerate(frames)
+                  for one_pass in self._passes(image, region)]
         groups: dict[tuple[int, ...], list[int]] = {}
-        for index, (pixels, _, _, _) in enumerate(prepared):
-            key = pixels.shape if self.precision == "bf16" else (index,)
+        for index, (_, one_pass) in enumerate(passes):
+            key = one_pass.pixels.shape if self.precision == "bf16" else (index,)
             groups.setdefault(key, []).append(index)
-        out: list[list[Detection]] = [[] for _ in frames]
+        boxes_by_frame: list[list[np.ndarray]] = [[] for _ in frames]  # per pass: (D, 6) in frame px
         with torch.inference_mode():
             for indices in groups.values():
-                maps = self._maps(_input_batch([prepared[i][0] for i in indices]))
+                maps = self._maps(_input_batch([passes[i][1].pixels for i in indices]))
                 for row, i in enumerate(indices):
-                    _, box, origin, region_in = prepared[i]
+                    frame_index, one_pass = passes[i]
                     det = decode([m[row:row + 1] for m in maps], threshold, self.model.strides, self.iou_threshold,
-                                 self.max_detections, origin_px=origin, region_px=region_in)[0]
-                    image, camera, _ = frames[i]
-                    out[i] = self._to_detections(det, box, image.shape[1], image.shape[0], camera)
-        return out
+                                 self.max_detections, origin_px=one_pass.origin_px, region_px=one_pass.region_in)[0]
+                    det = det.numpy().astype(np.float64)
+                    det[:, :4] = one_pass.box.to_image(det[:, :4])
+                    boxes_by_frame[frame_index].append(det)
+        return [self._to_detections(self._merge(found), image.shape[1], image.shape[0], camera)
+                for found, (image, camera, _) in zip(boxes_by_frame, frames)]
 
-    def _prepare(self, image_rgb: np.ndarray, region_px: tuple[int, int, int, int] | None
-                 ) -> tuple[np.ndarray, Letterbox, tuple[int, int], tuple[float, float, float, float] | None]:
-        """(network input pixels (H_in, W_in, 3) uint8, letterbox, origin of the input in the frame [px],
-        region in frame px)."""
+    def _merge(self, per_pass: list[np.ndarray]) -> np.ndarray:
+        """One frame's (D, 6) detections [frame px, score, class] from its passes: a lone pass as it is,
+        two passes by class-aware NMS over both, best first, at most `max_detections`."""
+        if len(per_pass) == 1:
+            return per_pass[0]
+        both = np.concatenate(per_pass)
+        keep = nms(both[:, :4], both[:, 4], both[:, 5].astype(np.int64), self.iou_threshold)[:self.max_detections]
+        return both[keep]
+
+    def _passes(self, image_rgb: np.ndarray, region_px: tuple[int, int, int, int] | None) -> list[_Pass]:
+        """The network inputs one frame needs: the letterboxed frame (or, at the input size, the region's
+        exact crop), and with `native_pixels` a frame larger than the input also at its own pixels."""
         check_image(image_rgb)
         image_h, image_w = image_rgb.shape[:2]
         box = fit(image_w, image_h, self.input_size)
         crop = self.pixels_needed(region_px, image_w, image_h)
         if crop is not None:
-            x0, y0, x1, y1 = crop
-            region_in = tuple(float(v) for v in clip_region(region_px, image_w, image_h))
-            return image_rgb[y0:y1, x0:x1], box, (x0, y0), region_in
+            return [_crop_pass(image_rgb, crop, region_px)]
         region_in = None if region_px is None else tuple(box.to_input(np.array(clip_region(region_px, image_w, image_h)))[0])
-        return warp(image_rgb, box), box, (0, 0), region_in
+        passes = [_Pass(warp(image_rgb, box), box, (0, 0), region_in)]
+        if self.native_pixels and box.scale < 1.0:
+            passes.append(_native_pass(image_rgb, region_px))
+        return passes
 
     def _maps(self, batch: torch.Tensor) -> list[torch.Tensor]:
         """The network's per-stride maps for a (B, 3, H_in, W_in) batch, at this runner's precision."""
@@ -151,3 +184,30 @@ def _input_batch(inputs: list[np.ndarray]) -> torch.Tensor:
     if len(inputs) == 1:
         return to_tensor(inputs[0]).unsqueeze(0)
     return torch.from_numpy(np.stack(inputs)).permute(0, 3, 1, 2).float().mul_(1.0 / 255.0)
+
+
+def _in_frame(det: torch.Tensor, box: Letterbox) -> np.ndarray:
+    """(D, 6) decoded detections in input px -> float64 numpy in frame px (scores and classes kept)."""
+    out = det.numpy().astype(np.float64)
+    out[:, :4] = box.to_image(out[:, :4])
+    return out
+
+
+def _crop_pass(image_rgb: np.ndarray, crop: tuple[int, int, int, int], region_px: tuple[int, int, int, int]) -> _Pass:
+    """The frame's own pixels inside `crop` (`roi.crop_for`), decoded in frame px and kept to the region."""
+    image_h, image_w = image_rgb.shape[:2]
+    x0, y0, x1, y1 = crop
+    region_in = tuple(float(v) for v in clip_region(region_px, image_w, image_h))
+    return _Pass(image_rgb[y0:y1, x0:x1], Letterbox(1.0, 0.0, 0.0, x1 - x0, y1 - y0), (x0, y0), region_in)
+
+
+def _native_pass(image_rgb: np.ndarray, region_px: tuple[int, int, int, int] | None) -> _Pass:
+    """A frame larger than the network's input, searched at its own pixels: the region's exact crop where
+    `roi.crop_for` gives one, else the whole frame with grey added below and right up to a multiple of 32."""
+    image_h, image_w = image_rgb.shape[:2]
+    crop = None if region_px is None else crop_for(region_px, image_w, image_h)
+    if crop is not None:
+        return _crop_pass(image_rgb, crop, region_px)
+    padded = Letterbox(1.0, 0.0, 0.0, -(-image_w // ALIGN_PX) * ALIGN_PX, -(-image_h // ALIGN_PX) * ALIGN_PX)
+    region_in = None if region_px is None else tuple(float(v) for v in clip_region(region_px, image_w, image_h))
+    return _Pass(warp(image_rgb, padded), padded, (0, 0), region_in)

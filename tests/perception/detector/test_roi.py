@@ -8,7 +8,7 @@ import torch
 
 from avsim.config import SimConfig, with_overrides
 from avsim.loop import ClosedLoop
-from avsim.perception.detector.infer import SignDetectorRunner
+from avsim.perception.detector.infer import SignDetectorRunner, _in_frame
 from avsim.perception.detector.letterbox import letterbox
 from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 from avsim.perception.detector.postprocess import decode
@@ -91,7 +91,7 @@ def _whole_frame_then_region(runner, frame, camera, region):
     tensor, box = letterbox(frame, runner.input_size)
     with torch.inference_mode():
         det = decode(runner.model(tensor.unsqueeze(0)), runner.conf_threshold, runner.model.strides, region_px=region)[0]
-    return runner._to_detections(det, box, frame.shape[1], frame.shape[0], camera)
+    return runner._to_detections(_in_frame(det, box), frame.shape[1], frame.shape[0], camera)
 
 
 @pytest.mark.parametrize("region", REGIONS.values(), ids=REGIONS.keys())
