@@ -8,57 +8,49 @@ import avsim.experiments.attacks.texture_eval as texture_eval
 from avsim import cli
 
 
-def test_attack_eval_draws_every_frame_under_the_setting_and_names_it_in_the_report(tmp_path, monkeypatch):
+def _record_each_stage(monkeypatch, what) -> list:
+    """Fakes the drive-bys and the figure (the fixed-distance tables still run), and returns the list to which
+    each stage appends (stage, what(its base config))."""
     seen = []
+    real_evaluate = texture_eval.evaluate_texture
 
     def fake_evaluate(sign, town, placements, threshold, base=None, detector="detector"):
-        seen.append(("fixed distances", base.scenario.materials, base.scenario.foliage))
+        seen.append(("fixed distances", what(base)))
         return real_evaluate(sign, town, placements, threshold, base=base, detector=detector)
 
     def fake_drive_by(sign, detector, town, placement, drives, base=None):
-        seen.append(("drive-bys", base.scenario.materials, base.scenario.foliage))
+        seen.append(("drive-bys", what(base)))
         return disappearance.DriveBys(sign, detector, town, placement, base.policy.conf_threshold, base.policy.trigger_dist_m)
 
     def fake_grid(signs, out_path, town="town07", base=None, detector="detector"):
-        seen.append(("figure", base.scenario.materials, base.scenario.foliage))
+        seen.append(("figure", what(base)))
         Path(out_path).write_bytes(b"")
         return Path(out_path)
 
-    real_evaluate = texture_eval.evaluate_texture
     monkeypatch.setattr(texture_eval, "evaluate_texture", fake_evaluate)
     monkeypatch.setattr(texture_eval, "fig3_grid", fake_grid)
     monkeypatch.setattr(disappearance, "drive_by_frames", fake_drive_by)
+    return seen
+
+
+STAGES = ("fixed distances", "drive-bys", "figure")
+
+
+def test_attack_eval_draws_every_frame_under_the_setting_and_names_it_in_the_report(tmp_path, monkeypatch):
+    seen = _record_each_stage(monkeypatch, lambda base: (base.scenario.materials, base.scenario.foliage))
     out = tmp_path / "eval"
     assert cli.main(["attack", "eval", "--signs", "clean", "--placements", "standard", "--drives", "1",
                      "--setting", "textured_clusters", "--out", str(out)]) == 0
-    assert seen == [(what, "textured", "clusters") for what in ("fixed distances", "drive-bys", "figure")]
+    assert seen == [(stage, ("textured", "clusters")) for stage in STAGES]
     report = (out / "report.md").read_text()
     assert "Render setting: `textured_clusters` (scenario.materials=textured, scenario.foliage=clusters)" in report
 
 
 def test_attack_eval_scores_every_frame_with_the_named_weights_and_names_them_in_the_report(tmp_path, monkeypatch):
     weights = "models/sign_detector_scenes.pt"
-    seen = []
-
-    def fake_evaluate(sign, town, placements, threshold, base=None, detector="detector"):
-        seen.append(("fixed distances", base.perception.weights_path))
-        return real_evaluate(sign, town, ("standard",), threshold, base=base, detector=detector)
-
-    def fake_drive_by(sign, detector, town, placement, drives, base=None):
-        seen.append(("drive-bys", base.perception.weights_path))
-        return disappearance.DriveBys(sign, detector, town, placement, base.policy.conf_threshold, base.policy.trigger_dist_m)
-
-    def fake_grid(signs, out_path, town="town07", base=None, detector="detector"):
-        seen.append(("figure", base.perception.weights_path))
-        Path(out_path).write_bytes(b"")
-        return Path(out_path)
-
-    real_evaluate = texture_eval.evaluate_texture
-    monkeypatch.setattr(texture_eval, "evaluate_texture", fake_evaluate)
-    monkeypatch.setattr(texture_eval, "fig3_grid", fake_grid)
-    monkeypatch.setattr(disappearance, "drive_by_frames", fake_drive_by)
+    seen = _record_each_stage(monkeypatch, lambda base: base.perception.weights_path)
     out = tmp_path / "eval"
     assert cli.main(["attack", "eval", "--signs", "clean", "--placements", "standard", "--drives", "1",
                      "--weights", weights, "--out", str(out)]) == 0
-    assert seen == [(what, weights) for what in ("fixed distances", "drive-bys", "figure")]
+    assert seen == [(stage, weights) for stage in STAGES]
     assert f"The own detector ({weights}) on full 640x480 frames" in (out / "report.md").read_text()
