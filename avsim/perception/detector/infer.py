@@ -49,9 +49,9 @@ DEFAULT_CONF_THRESHOLD = 0.3
 
 
 class _Pass(NamedTuple):
-    """One network input made from a frame: its pixels (H_in, W_in, 3) uint8, the letterbox that maps
-    decoded boxes back to the frame, where the input starts in the letterboxed frame [px], and the region
-    in those pixels (None: no region)."""
+    """One network input made from a frame: its pixels (H_in, W_in, 3) uint8; the letterbox that maps the
+    decoded boxes back to the frame; where the input starts in the letterboxed frame [px] (a crop's corner,
+    else (0, 0)); and the region in the letterboxed frame's pixels (None: no region)."""
 
     pixels: np.ndarray
     box: Letterbox
@@ -141,9 +141,7 @@ class SignDetectorRunner:
                     frame_index, one_pass = passes[i]
                     det = decode([m[row:row + 1] for m in maps], threshold, self.model.strides, self.iou_threshold,
                                  self.max_detections, origin_px=one_pass.origin_px, region_px=one_pass.region_in)[0]
-                    det = det.numpy().astype(np.float64)
-                    det[:, :4] = one_pass.box.to_image(det[:, :4])
-                    boxes_by_frame[frame_index].append(det)
+                    boxes_by_frame[frame_index].append(_in_frame(det, one_pass.box))
         return [self._to_detections(self._merge(found), image.shape[1], image.shape[0], camera)
                 for found, (image, camera, _) in zip(boxes_by_frame, frames)]
 
