@@ -94,9 +94,9 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     if args.weights:
         if "detector" not in detectors:
             raise ConfigError("--weights sets the own detector's weights; add detector to --detectors, or drop --weights")
-        from avsim.perception.detector.weights import load_checkpoint
+        from avsim.perception.detector.weights import load_weights
 
-        load_checkpoint(args.weights)  # missing or corrupt weights fail before anything is rendered
+        load_weights(args.weights)  # missing, corrupt or mismatched weights fail before anything is rendered
         base = with_overrides(base, {"perception": {"weights_path": args.weights}})
     threshold = base.policy.conf_threshold
     out = Path(args.out)
