@@ -40,6 +40,12 @@ def _front_frames(preset: str, dists_m: tuple[float, ...]) -> tuple[list[np.ndar
 
 
 @pytest.fixture(scope="module")
+def automotive():
+    """((far frame, near frame), front region) under the automotive camera, rendered once for the module."""
+    return _front_frames("automotive_1080p", (FAR_M, NEAR_M))
+
+
+@pytest.fixture(scope="module")
 def runners():
     return {native: SignDetectorRunner(SHIPPED_WEIGHTS, conf_threshold=0.1, num_threads=1, native_pixels=native)
             for native in (False, True)}
@@ -56,8 +62,8 @@ def test_at_the_study_camera_the_native_pass_changes_nothing(runners):
                 == [_key(d) for d in runners[False].detect(frames[0], "front", region_px=region_px)])
 
 
-def test_under_the_automotive_camera_the_native_pass_finds_the_far_sign_and_keeps_the_near_one(runners):
-    (far, near), region = _front_frames("automotive_1080p", (FAR_M, NEAR_M))
+def test_under_the_automotive_camera_the_native_pass_finds_the_far_sign_and_keeps_the_near_one(runners, automotive):
+    (far, near), region = automotive
     assert far.shape == (1080, 1920, 3)
     assert not _stop_scores(runners[False].detect(far, "front", region_px=region)), \
         "the letterboxed 1080p frame should lose the sign at 110 m (3x fewer pixels)"
@@ -70,15 +76,15 @@ def test_under_the_automotive_camera_the_native_pass_finds_the_far_sign_and_keep
     assert len(stops) == 1
 
 
-def test_a_frame_without_a_region_is_searched_whole_at_its_own_pixels(runners):
-    (far,), region = _front_frames("automotive_1080p", (FAR_M,))
+def test_a_frame_without_a_region_is_searched_whole_at_its_own_pixels(runners, automotive):
+    (far, _), region = automotive
     whole = _stop_scores(runners[True].detect(far, "front"))
     assert whole and max(whole) == pytest.approx(max(_stop_scores(runners[True].detect(far, "front", region_px=region))), abs=0.05)
 
 
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_the_batch_gives_each_frame_what_it_gets_alone(precision):
-    frames, region = _front_frames("automotive_1080p", (FAR_M, NEAR_M))
+def test_the_batch_gives_each_frame_what_it_gets_alone(precision, automotive):
+    frames, region = automotive
     for native in (False, True):
         runner = SignDetectorRunner(SHIPPED_WEIGHTS, conf_threshold=0.1, num_threads=1, precision=precision,
                                     native_pixels=native)
