@@ -57,7 +57,10 @@ image's own pixels. The whole image is searched (the closed loop's regions of in
 its min_box_height_px range limit do not apply).
 
 Images of any size:
-  detector  letterboxed into its 640x480 input (aspect kept, grey padding), boxes mapped back;
+  detector  letterboxed into its 640x480 input (aspect kept, grey padding), boxes mapped back; an
+            image larger than that is also searched at its own pixels (padded to a multiple of 32;
+            slower and memory-hungry for large photos) and the two merged by NMS, unless
+            perception.detector_native_pixels=false;
   coco      by perception.coco_input: resize squeezes the whole image to 512x512 as
             @vladmandic/human does (aspect not kept); crop runs the network on the image at
             its own resolution (padded to a multiple of 32; slow and memory-hungry for
