@@ -40,7 +40,7 @@ import torch
 
 from avsim.config import DETECTOR_PRECISIONS
 from avsim.perception.base import Detection, touches_border
-from avsim.perception.detector.letterbox import Letterbox, check_image, fit, letterbox, to_tensor, warp
+from avsim.perception.detector.letterbox import Letterbox, check_image, fit, to_tensor, warp
 from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode, nms
 from avsim.perception.detector.roi import ALIGN_PX, clip_region, crop_for
 from avsim.perception.detector.weights import load_weights
@@ -89,16 +89,9 @@ class SignDetectorRunner:
 
     def detect_batch(self, images_rgb: list[np.ndarray], camera: str = "front",
                      conf_threshold: float | None = None) -> list[list[Detection]]:
-        """One list of detections per (H, W, 3) uint8 RGB image (sizes may differ), each sorted by confidence."""
-        if not images_rgb:
-            return []
-        letterboxed = [letterbox(image, self.input_size) for image in images_rgb]
-        batch = torch.stack([tensor for tensor, _ in letterboxed]).contiguous(memory_format=torch.channels_last)
-        threshold = self.conf_threshold if conf_threshold is None else conf_threshold
-        with torch.inference_mode():
-            detections = decode(self._maps(batch), threshold, self.model.strides, self.iou_threshold, self.max_detections)
-        return [self._to_detections(_in_frame(det, box), image.shape[1], image.shape[0], camera)
-                for det, (_, box), image in zip(detections, letterboxed, images_rgb)]
+        """One list of detections per (H, W, 3) uint8 RGB image (sizes may differ), each sorted by confidence:
+        each whole image searched as `detect` searches it (`detect_many` with no region)."""
+        return self.detect_many([(image, camera, None) for image in images_rgb], conf_threshold)
 
     def detect(self, image_rgb: np.ndarray, camera: str, conf_threshold: float | None = None,
                region_px: tuple[int, int, int, int] | None = None) -> list[Detection]:
