@@ -11,6 +11,7 @@ import os
 
 import mujoco
 import numpy as np
+from OpenGL import GL
 
 from avsim.errors import RenderError
 from avsim.sensors.culling import FULL_VIEW_NDC, cullable, outside_view, window_of_region
@@ -73,6 +74,10 @@ class OffscreenRenderer:
         self._perturb = mujoco.MjvPerturb()
         self._rect = mujoco.MjrRect(0, 0, width_px, height_px)
         self.cull = cull
+        # A region read back alone is rasterised alone (`_rasterise_only`); False draws the whole
+        # frame, as a check of it.
+        self.rasterise_region_only = True
+        self._stencil_region: tuple[int, int, int, int] | None = None
         self._buffer = np.empty((height_px, width_px, 3), dtype=np.uint8)
 
     def render(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption,
@@ -82,14 +87,17 @@ class OffscreenRenderer:
         region is in image pixels (row 0 at the top), end-exclusive. Reading back is the
         larger part of a frame's cost on a software rasteriser, so callers that need a
         small part of the image ask only for it. The geoms outside the region's view are
-        then left out of the render too (where culling is exact), which changes none of the
-        region's pixels. Returns a view of an internal buffer, valid until the next call, of
+        then left out of the render too (where culling is exact), and only the region's
+        pixels are shaded (`_rasterise_only`); neither changes any of the region's pixels. Returns a view of an internal buffer, valid until the next call, of
         shape (y1 - y0, x1 - x0, 3).
         """
         self._gl.make_current()
         self._camera.fixedcamid = camera_id
         self._update_scene(data, camera_id, option, region)
+        masked = region is not None and self._rasterise_only(region)
         mujoco.mjr_render(self._rect, self._scene, self._con)
+        if masked:
+            GL.glDisable(GL.GL_STENCIL_TEST)
         if region is None:
             mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
             return self._buffer[::-1]  # OpenGL rows run bottom-up
@@ -98,6 +106,40 @@ class OffscreenRenderer:
         out = self._buffer.reshape(-1)[: (y1 - y0) * (x1 - x0) * 3].reshape(y1 - y0, x1 - x0, 3)
         mujoco.mjr_readPixels(out, None, mujoco.MjrRect(x0, height - y1, x1 - x0, y1 - y0), self._con)
         return out[::-1]
+
+    def _rasterise_only(self, region: tuple[int, int, int, int]) -> bool:
+        """Confine the next render's fragments to `region` (x0, y0, x1, y1) with the stencil test;
+        True if it did (the caller turns the test off after the render).
+
+        llvmpipe shades every covered pixel of the framebuffer, read back or not. A smaller
+        framebuffer, or a shifted viewport, would rasterise only the region but moves pixels: the
+        offset enters the GL's float arithmetic. The stencil test changes no arithmetic: the frame
+        is set up exactly as before, and fragments outside the region are dropped before shading.
+        The region's pixels are the same, bit for bit (`tests/sensors/test_gl.py`). MuJoCo leaves
+        the stencil buffer alone except to draw reflections, so with a reflective material in the
+        model the whole frame is drawn. The mask is written once per region: `mjr_render` clears
+        colour and depth, never the stencil.
+        """
+        if not self.rasterise_region_only or (self._model.nmat and np.any(self._model.mat_reflectance > 0)):
+            return False
+        x0, y0, x1, y1 = region
+        if (x0, y0, x1, y1) == (0, 0, self._rect.width, self._rect.height):
+            return False
+        if region != self._stencil_region:
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)  # the mask goes into our framebuffer
+            GL.glStencilMask(0xFF)
+            GL.glClearStencil(0)
+            GL.glClear(GL.GL_STENCIL_BUFFER_BIT)
+            GL.glScissor(x0, self._rect.height - y1, x1 - x0, y1 - y0)  # GL rows run bottom-up
+            GL.glEnable(GL.GL_SCISSOR_TEST)
+            GL.glClearStencil(1)
+            GL.glClear(GL.GL_STENCIL_BUFFER_BIT)
+            GL.glDisable(GL.GL_SCISSOR_TEST)
+            GL.glStencilFunc(GL.GL_EQUAL, 1, 0xFF)
+            GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_KEEP)
+            self._stencil_region = region
+        GL.glEnable(GL.GL_STENCIL_TEST)
+        return True
 
     def _update_scene(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption,
                       region: tuple[int, int, int, int] | None) -> None:

@@ -1,9 +1,14 @@
-"""The offscreen renderer: each one draws into a framebuffer of its own size."""
+"""The offscreen renderer: each one draws into a framebuffer of its own size, and a region read back
+alone is rasterised alone, with the whole frame's pixels."""
 
 import mujoco
 import numpy as np
+import pytest
 
+from avsim.loop import ClosedLoop
 from avsim.sensors.gl import OffscreenRenderer
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from helpers import make_config
 
 # A red box filling the view of a camera looking down the x axis, before a grey plane.
 SCENE = """
@@ -40,3 +45,70 @@ def test_each_renderer_gets_a_framebuffer_of_its_own_size_and_the_model_keeps_it
         corner = frame[height_px - 1, width_px - 1].astype(int)
         assert centre[0] - centre[1] > 80, (width_px, centre)  # the red box
         assert corner.min() > 40 and abs(corner[0] - corner[1]) < 10, (width_px, corner)
+
+
+def _place(loop, dist_m: float) -> None:
+    """The car's bumper `dist_m` before the stop line, on its lane."""
+    loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+    mujoco.mj_forward(loop.model, loop.data)
+
+
+# (x0, y0, x1, y1) [px] in a 640x480 frame: the front camera's deployed region, the detector's crop around
+# it, a sign-sized box inside the frame, and a strip along the bottom edge.
+REGIONS_PX = ((288, 0, 640, 256), (160, 0, 640, 384), (301, 117, 333, 151), (0, 400, 640, 480))
+
+
+def _render(renderer: OffscreenRenderer, loop, camera_id: int, region=None) -> np.ndarray:
+    """The render's pixels; for segmentation, the model geom under each pixel (scene indices depend on
+    which geoms were culled, which depends on the region)."""
+    frame = renderer.render(loop.data, camera_id, mujoco.MjvOption(), region).astype(np.int32)
+    if renderer._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT]:
+        frame = renderer.geom_id_lookup()[frame[..., 0] | (frame[..., 1] << 8) | (frame[..., 2] << 16)]
+    return frame
+
+
+@pytest.mark.parametrize("segmentation, overrides", [
+    (False, {"scenario": {"town": "town07"}}),
+    (False, {"scenario": {"town": "town10", "materials": "textured", "sun_shadow_map_px": 1024}}),
+    (False, {"scenario": {"town": "town03"}, "camera": {"offsamples": 4}}),
+    (True, {"scenario": {"town": "town10"}}),
+])
+def test_a_region_rasterised_alone_has_the_whole_frames_pixels(segmentation, overrides):
+    loop = ClosedLoop(make_config(**overrides))
+    masked = OffscreenRenderer(loop.model, 640, 480, segmentation=segmentation)
+    whole = OffscreenRenderer(loop.model, 640, 480, segmentation=segmentation)
+    whole.rasterise_region_only = False
+    try:
+        for dist_m in (60.0, 12.0):
+            _place(loop, dist_m)
+            for camera in ("car/front", "car/side"):
+                camera_id = loop.model.camera(camera).id
+                frame = _render(whole, loop, camera_id)
+                for x0, y0, x1, y1 in REGIONS_PX:
+                    region = _render(masked, loop, camera_id, (x0, y0, x1, y1))
+                    assert masked._stencil_region == (x0, y0, x1, y1)  # the mask was in use
+                    assert np.array_equal(region, frame[y0:y1, x0:x1]), (overrides, dist_m, camera, (x0, y0, x1, y1))
+                # After region renders, a whole frame is drawn whole again.
+                assert np.array_equal(_render(masked, loop, camera_id), frame), (overrides, dist_m, camera)
+    finally:
+        masked.close()
+        whole.close()
+        loop.close()
+
+
+def test_a_reflective_material_keeps_the_stencil_buffer_for_mujoco_and_draws_the_whole_frame():
+    # MuJoCo draws reflections through the stencil buffer, so the region's mask must stay out of its way.
+    model = mujoco.MjModel.from_xml_string(SCENE.replace(
+        "<worldbody>", '<asset><material name="mirror" reflectance="0.5"/></asset><worldbody>').replace(
+        'rgba="0.5 0.5 0.5 1"', 'material="mirror"'))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    option = mujoco.MjvOption()
+    renderer = OffscreenRenderer(model, 640, 480, segmentation=False)
+    try:
+        frame = renderer.render(data, 0, option).copy()
+        region = renderer.render(data, 0, option, (100, 200, 400, 480))
+        assert renderer._stencil_region is None
+        assert np.array_equal(region, frame[200:480, 100:400])
+    finally:
+        renderer.close()
