@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from avsim.cli.flags import BATCH_FLAG, WORKERS_FLAG
+from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG
 from avsim.errors import ConfigError
 from avsim.cli.recording_modes import add_recording_modes
 from avsim.outputs import FOLDER, add_input_argument, add_output_argument
@@ -20,7 +20,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     paths = [Path(p) for p in args.experiments] if args.experiments else None
     if args.resume is not None and args.out is not None:
         raise ConfigError("give --out (a new reproduction's parent folder) or --resume FOLDER (the one to finish), not both")
-    out = reproduce(args.out or "results", resume=args.resume, quick=args.quick, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
+    out = reproduce(args.out or "results", resume=args.resume, quick=args.quick, seeds=args.seeds, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
                     rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "report.md").read_text())
@@ -69,6 +69,9 @@ def add_commands(sub) -> None:
     """Add `avsim reproduce`, `avsim sweep` and `avsim leaderboard` to the subcommands `sub`."""
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
     rep.add_argument("--quick", action="store_true", help="one seed per cell, for a smoke check")
+    rep.add_argument("--seeds", type=SEEDS_FLAG, metavar="N",
+                     help="seeds 0..N-1 for every cell instead of each file's own count (5 for the study's); a seed's "
+                          "run is the same, bit for bit, whatever N is")
     rep.add_argument("--all", action="store_true",
                      help="also every other experiment file but the YOLOv3-tiny ones: the sensitivity, the COCO network's "
                           "closed loop and Table III, and the attack-success files (hours on 2 cores; the YOLO files "

@@ -17,6 +17,8 @@ from avsim.validation import config_flag, number_flag
 SEED_FLAG = config_flag(ScenarioConfig, "seed")
 WORKERS_FLAG = number_flag(1, 1024, integer=True)
 BATCH_FLAG = number_flag(1, 1024, integer=True)
+# `avsim reproduce --seeds N`: seeds per cell (the plan's size is checked as a whole, `plan_size`).
+SEEDS_FLAG = number_flag(1, 10_000, integer=True)
 # A finite integer whose range the command's own config declares (e.g. DataGenConfig, checked before any work).
 INT_FLAG = number_flag(integer=True)
 

@@ -67,17 +67,22 @@ YOLO_EXPERIMENTS = ("yolo_detector", "table3_yolo", "table3_yolo_clusters", "att
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,
-               yes: bool = False) -> list[Experiment]:
+               yes: bool = False, seeds: int | None = None) -> list[Experiment]:
     """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
-    experiment file); `quick` keeps one seed per cell. yes: allow a plan of more than
+    experiment file); `quick` keeps one seed per cell, `seeds` runs seeds 0 .. seeds - 1 in every
+    cell instead of each file's own count. yes: allow a plan of more than
     `plan_size.RUNS_WITHOUT_YES` runs (counted before any run is built)."""
+    if quick and seeds is not None:
+        raise ConfigError("--quick runs one seed per cell and --seeds N runs N; give one of them")
     names = STUDY_EXPERIMENTS + (MORE_EXPERIMENTS if everything else ())
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in names]
     experiments = [load_experiment(path) for path in paths]
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
-    experiments = [dataclasses.replace(e, seeds=1) if quick else e for e in experiments]
+    if quick or seeds is not None:
+        # A run's config depends on its seed alone, not on the count, so seed k is the same run either way.
+        experiments = [dataclasses.replace(e, seeds=1 if quick else seeds) for e in experiments]
     runs = sum(e.size for e in experiments)
     check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
     return experiments
@@ -100,12 +105,15 @@ def _fresh_dir(root: Path, stamp: str) -> Path:
     return out
 
 
-def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, workers: int | None = None,
+def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = False, seeds: int | None = None,
+              workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
               address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False,
               rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP, resume: str | os.PathLike | None = None) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
+
+    seeds: run seeds 0 .. seeds - 1 in every cell instead of each file's own count (`quick`: one).
 
     resume: a results folder of an earlier `reproduce` to finish instead of making a new one under
     `results_root`: its ok runs are kept and the rest run (module docstring).
@@ -117,7 +125,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     """
     if everything and experiment_paths:
         raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
-    experiments = load_study(experiment_paths, quick, everything, yes)
+    experiments = load_study(experiment_paths, quick, everything, yes, seeds)
     check_modes(rrd, mcap)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
@@ -130,7 +138,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
         existing = []
     selection = " ".join(part for part in (
-        "--all" if everything else "", "--quick" if quick else "",
+        "--all" if everything else "", "--quick" if quick else "", f"--seeds {seeds}" if seeds is not None else "",
         "--experiments " + " ".join(map(str, experiment_paths)) if experiment_paths else "",
         f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address else "",
         recording_flags(rrd, mcap).strip()) if part)

@@ -148,6 +148,42 @@ def test_quick_keeps_one_seed_per_cell(tmp_path):
     assert [e.seeds for e in load_study([experiment], quick=True)] == [1]
 
 
+def test_more_seeds_extend_a_reproduction_whose_first_seeds_are_the_same_runs(results, tmp_path, capsys):
+    full = read_records(results / "runs.jsonl")
+    extended = tmp_path / "extended"
+    shutil.copytree(results, extended)
+    table3 = results.parents[1] / "table3_stop_positions.toml"
+
+    code = cli.main(["reproduce", "--experiments", str(table3), "--seeds", "3", "--workers", "1", "--no-progress",
+                     "--rrd", "none", "--resume", str(extended)])
+
+    assert code == 0, capsys.readouterr().err
+    manifest = json.loads((extended / "manifest.json").read_text())
+    # Seeds 0 and 1 match the 2-seed runs by config hash and are kept; only seed 2 of each cell runs.
+    assert (manifest["ran"], manifest["experiments"]["table3_stop_positions"]["seeds"]) == (3, 3)
+    assert "--seeds 3" in manifest["command"]
+    records = read_records(extended / "runs.jsonl")
+    table3_runs = [(r["cell"], r["seed"]) for r in records if r["experiment"] == "table3_stop_positions"]
+    assert table3_runs == [(cell, seed) for cell in ("clean sign, baseline", "attacked sign, side_camera", "autopilot")
+                           for seed in (0, 1, 2)]
+    assert all(r in records for r in full)  # the first seeds' records, untouched
+    assert "3 seed(s) per cell" in (extended / "report.md").read_text()
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--quick", "--seeds", "3"], "give one of them"),
+    (["--seeds", "0"], "--seeds"),
+])
+def test_a_bad_seed_count_fails_in_one_line_and_writes_nothing(tmp_path, capsys, argv, expected):
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3)
+    before = sorted(tmp_path.rglob("*"))
+    code = cli.main(["reproduce", "--experiments", str(experiment), "--out", str(tmp_path / "results"), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and expected in err, err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
 def test_a_bad_experiment_file_fails_in_one_line_before_anything_is_written(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text(TINY_TABLE3.replace('town = "town07"', 'town = "town99"'))
