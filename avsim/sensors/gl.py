@@ -88,16 +88,19 @@ class OffscreenRenderer:
         larger part of a frame's cost on a software rasteriser, so callers that need a
         small part of the image ask only for it. The geoms outside the region's view are
         then left out of the render too (where culling is exact), and only the region's
-        pixels are shaded (`_rasterise_only`); neither changes any of the region's pixels. Returns a view of an internal buffer, valid until the next call, of
-        shape (y1 - y0, x1 - x0, 3).
+        pixels are shaded (`_rasterise_only`); neither changes any of the region's pixels.
+        Returns a view of an internal buffer, valid until the next call, of shape
+        (y1 - y0, x1 - x0, 3).
         """
         self._gl.make_current()
         self._camera.fixedcamid = camera_id
         self._update_scene(data, camera_id, option, region)
         masked = region is not None and self._rasterise_only(region)
-        mujoco.mjr_render(self._rect, self._scene, self._con)
-        if masked:
-            GL.glDisable(GL.GL_STENCIL_TEST)
+        try:
+            mujoco.mjr_render(self._rect, self._scene, self._con)
+        finally:
+            if masked:  # a later whole frame is drawn whole
+                GL.glDisable(GL.GL_STENCIL_TEST)
         if region is None:
             mujoco.mjr_readPixels(self._buffer, None, self._rect, self._con)
             return self._buffer[::-1]  # OpenGL rows run bottom-up
@@ -122,8 +125,8 @@ class OffscreenRenderer:
         """
         if not self.rasterise_region_only or (self._model.nmat and np.any(self._model.mat_reflectance > 0)):
             return False
-        x0, y0, x1, y1 = region
-        if (x0, y0, x1, y1) == (0, 0, self._rect.width, self._rect.height):
+        x0, y0, x1, y1 = region = tuple(region)
+        if region == (0, 0, self._rect.width, self._rect.height):
             return False
         if region != self._stencil_region:
             mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)  # the mask goes into our framebuffer
