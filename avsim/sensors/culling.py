@@ -35,11 +35,17 @@ MARGIN_M = 1e-3
 FULL_VIEW_NDC = (-1.0, 1.0, -1.0, 1.0)
 
 
+def has_reflective_material(model: mujoco.MjModel) -> bool:
+    """Whether MuJoCo draws a reflection in this model: a mirror shows geoms out of view, and MuJoCo draws it
+    through the stencil buffer."""
+    return bool(model.nmat and np.any(model.mat_reflectance > 0))
+
+
 def cullable(model: mujoco.MjModel, camera_id: int) -> bool:
     """True when leaving out-of-view geoms out of `camera_id`'s renders cannot change a pixel."""
     if model.nlight and np.any(model.light_castshadow):
         return False
-    if model.nmat and np.any(model.mat_reflectance > 0):
+    if has_reflective_material(model):
         return False
     if model.cam_projection[camera_id] != mujoco.mjtProjection.mjPROJ_PERSPECTIVE or np.any(model.cam_sensorsize[camera_id] > 0):
         return False

@@ -14,7 +14,7 @@ import numpy as np
 from OpenGL import GL
 
 from avsim.errors import RenderError
-from avsim.sensors.culling import FULL_VIEW_NDC, cullable, outside_view, window_of_region
+from avsim.sensors.culling import FULL_VIEW_NDC, cullable, has_reflective_material, outside_view, window_of_region
 from avsim.termination import raise_if_interrupted
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
@@ -123,7 +123,7 @@ class OffscreenRenderer:
         model the whole frame is drawn. The mask is written once per region: `mjr_render` clears
         colour and depth, never the stencil.
         """
-        if not self.rasterise_region_only or (self._model.nmat and np.any(self._model.mat_reflectance > 0)):
+        if not self.rasterise_region_only or has_reflective_material(self._model):
             return False
         x0, y0, x1, y1 = region = tuple(region)
         if region == (0, 0, self._rect.width, self._rect.height):
