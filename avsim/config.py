@@ -25,8 +25,10 @@ C = TypeVar("C")
 COCO_INPUTS = ("resize", "crop", "upscale")
 # Values of PerceptionConfig.coco_precision: the float32 port, or its bfloat16 copy (perception/coco/bf16.py).
 COCO_PRECISIONS = ("fp32", "bf16")
-# Values of PerceptionConfig.detector_precision: the own detector in float32, or under bfloat16 autocast.
-DETECTOR_PRECISIONS = ("fp32", "bf16")
+# The own detector's arithmetics: float32, or bfloat16 autocast (perception/detector/infer.py).
+DETECTOR_ARITHMETICS = ("fp32", "bf16")
+# Values of PerceptionConfig.detector_precision: "auto" (bf16 where the CPU runs it, else fp32) or either arithmetic.
+DETECTOR_PRECISIONS = ("auto",) + DETECTOR_ARITHMETICS
 # Values of PerceptionConfig.purify (perception/purify.py) and .ensemble_fusion (perception/ensemble.py).
 PURIFIERS = ("none", "jpeg", "median")
 ENSEMBLE_FUSIONS = ("or", "and", "k_of_n")
@@ -348,12 +350,13 @@ class PerceptionConfig:
     # a run is bit-identical only at the same count. One thread also lets a pool of
     # worker processes use every core without oversubscribing them.
     threads: int = ranged(1, 1, 64)
-    # `detector`: the arithmetic of the own network. "fp32" is what every table in the docs was
-    # measured with; "bf16" runs its convolutions under bfloat16 autocast, about 1.5x faster here,
-    # and lets the lock-step batch share one network call among cars (perception/detector/infer.py).
-    # Its scores differ from fp32's by bf16 rounding: `python -m avsim.perception.detector.precision_agreement`
-    # measures recall per 5-m bin under both. It needs a CPU on which oneDNN runs bf16 (AVX-512).
-    detector_precision: str = "fp32"
+    # `detector`: the arithmetic of the own network. "bf16" runs its convolutions under bfloat16
+    # autocast, about 1.5x faster than "fp32" here, and lets the lock-step batch share one network
+    # call among cars (perception/detector/infer.py); it needs a CPU on which oneDNN runs bf16
+    # (AVX-512). "auto" is bf16 on such a CPU and fp32 elsewhere, and a batch's manifest says which.
+    # bf16 scores differ from fp32's by bf16 rounding: `python -m avsim.perception.detector.precision_agreement`
+    # measures recall per 5-m bin under both, and docs/performance.md what it changes in the closed loop.
+    detector_precision: str = "auto"
     # `detector`, under a camera larger than the network's trained input (camera.preset =
     # "automotive_1080p"): also search the region of interest at the camera's own pixels, besides the
     # frame letterboxed down to the input, and merge the two by NMS (perception/detector/infer.py).

@@ -47,6 +47,7 @@ from avsim.errors import ConfigError
 from avsim.experiments.plan import Counted, Group, count_of, group_size, in_flight, lockstep_groups, specs_of
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
 from avsim.experiments.run_task import RunSpec, execute_group, worker_env
+from avsim.perception.detector.infer import resolve_precision
 from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
@@ -71,9 +72,11 @@ def resolve_workers(workers: int | None, address: str | None) -> int | None:
 
 
 def software_versions() -> dict[str, str]:
-    """The software and machine a batch ran on, for its manifest."""
+    """The software and machine a batch ran on, for its manifest; `detector_precision_auto` is what
+    `perception.detector_precision = "auto"` (the default) ran as here."""
     return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
-            "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores"}
+            "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+            "detector_precision_auto": resolve_precision("auto")}
 
 
 def check_backend(backend: str, address: str | None = None) -> None:

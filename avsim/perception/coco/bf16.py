@@ -31,11 +31,11 @@ import copy
 import torch
 from torch import nn
 
-from avsim.errors import ConfigError
 from avsim.perception.coco.decode import decode_detections, decode_logit_detections
 from avsim.perception.coco.model import CocoCenterNet
 from avsim.perception.coco.network import HEATMAP_NAME
 from avsim.perception.coco.ops import TfConv2d
+from avsim.perception.cpu_bf16 import require_bf16
 
 FLOAT32_LAYERS = ("tower_0/MobilenetV3/expanded_conv/depthwise/depthwise",
                   "tower_0/MobilenetV3/expanded_conv/project/BatchNorm/FusedBatchNorm")
@@ -62,9 +62,7 @@ class Bf16CenterNet(nn.Module):
 
     def __init__(self, model: CocoCenterNet) -> None:
         super().__init__()
-        if not torch.ops.mkldnn._is_mkldnn_bf16_supported():
-            raise ConfigError("perception.coco_precision = bf16 needs a CPU on which oneDNN runs bfloat16 (AVX-512 BW, VL "
-                              "and DQ, or AVX-NE-CONVERT), and this one has none; set perception.coco_precision=fp32")
+        require_bf16("perception.coco_precision")
         network = copy.deepcopy(model.network)
         heatmap_conv = network.nodes[network.producer_index(HEATMAP_NAME)]
         if not isinstance(heatmap_conv, TfConv2d) or heatmap_conv.activation != "Sigmoid":

@@ -16,7 +16,7 @@ import copy
 import torch
 from torch import nn
 
-from avsim.errors import ConfigError
+from avsim.perception.cpu_bf16 import require_bf16
 from avsim.perception.yolo.decode import decode_heads, score_rows
 from avsim.perception.yolo.model import PIXEL_SCALE, YoloModel
 
@@ -26,9 +26,7 @@ class Bf16Yolo(nn.Module):
 
     def __init__(self, model: YoloModel) -> None:
         super().__init__()
-        if not torch.ops.mkldnn._is_mkldnn_bf16_supported():
-            raise ConfigError("perception.yolo_precision = bf16 needs a CPU on which oneDNN runs bfloat16 (AVX-512 BW, VL "
-                              "and DQ, or AVX-NE-CONVERT), and this one has none; set perception.yolo_precision=fp32")
+        require_bf16("perception.yolo_precision")
         self.network = copy.deepcopy(model.network).to(torch.bfloat16).eval()
         for head, original in zip(self.network.heads, model.network.heads, strict=True):
             head.anchors_px = original.anchors_px.clone()  # float32: bf16 would round an anchor of 319 px to 320
