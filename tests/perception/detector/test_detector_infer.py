@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 import torch
 
+from avsim.config import PerceptionConfig
 from avsim.perception.base import Detection
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.letterbox import fit
 from avsim.perception.detector.model import build_detector
 from avsim.perception.detector.weights import save_checkpoint
+from avsim.perception.factory import build_frame_detector
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +75,10 @@ def test_detect_batch_matches_detect(weights_320, synthetic_dataset):
         assert all(0 <= d.box_xyxy_px[0] <= d.box_xyxy_px[2] <= 640 and 0 <= d.box_xyxy_px[1] <= d.box_xyxy_px[3] <= 480 for d in dets)
         assert [d.confidence for d in dets] == sorted((d.confidence for d in dets), reverse=True)
     assert runner.detect_batch([], "front") == []
+
+
+def test_the_default_config_runs_bf16_where_the_cpu_has_it_and_fp32_elsewhere(monkeypatch):
+    assert PerceptionConfig().detector_precision == "auto"
+    for supported, arithmetic in ((True, "bf16"), (False, "fp32")):
+        monkeypatch.setattr(torch.ops.mkldnn, "_is_mkldnn_bf16_supported", lambda supported=supported: supported)
+        assert build_frame_detector(PerceptionConfig(kind="detector")).precision == arithmetic
