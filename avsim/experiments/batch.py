@@ -47,7 +47,7 @@ from avsim.errors import ConfigError
 from avsim.experiments.plan import Counted, Group, count_of, group_size, in_flight, lockstep_groups, specs_of
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
 from avsim.experiments.run_task import RunSpec, execute_group, worker_env
-from avsim.perception.detector.infer import resolve_precision
+from avsim.perception.cpu_bf16 import detector_arithmetic
 from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
@@ -76,7 +76,7 @@ def software_versions() -> dict[str, str]:
     `perception.detector_precision = "auto"` (the default) ran as here."""
     return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
             "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "detector_precision_auto": resolve_precision("auto")}
+            "detector_precision_auto": detector_arithmetic("auto")}
 
 
 def check_backend(backend: str, address: str | None = None) -> None:

@@ -6,8 +6,7 @@ import pytest
 import torch
 
 from avsim.errors import ConfigError
-from avsim.perception.cpu_bf16 import onednn_runs_bf16, require_bf16
-from avsim.perception.detector.infer import resolve_precision
+from avsim.perception.cpu_bf16 import detector_arithmetic, onednn_runs_bf16, require_bf16
 
 
 @pytest.fixture
@@ -25,20 +24,20 @@ def test_the_answer_is_onednns():
 
 
 def test_auto_is_bf16_where_the_cpu_runs_it(with_bf16):
-    assert resolve_precision("auto") == "bf16"
+    assert detector_arithmetic("auto") == "bf16"
 
 
 def test_auto_is_fp32_where_it_does_not(no_bf16):
-    assert resolve_precision("auto") == "fp32"
+    assert detector_arithmetic("auto") == "fp32"
 
 
 def test_fp32_is_fp32_on_any_cpu(no_bf16):
-    assert resolve_precision("fp32") == "fp32"
+    assert detector_arithmetic("fp32") == "fp32"
 
 
 def test_bf16_without_the_cpu_names_the_setting_and_the_fix(no_bf16):
     with pytest.raises(ConfigError, match=r"perception.detector_precision = bf16 .*set perception.detector_precision=fp32$"):
-        resolve_precision("bf16")
+        detector_arithmetic("bf16")
 
 
 def test_require_names_the_setting_it_was_given(no_bf16):
@@ -48,4 +47,4 @@ def test_require_names_the_setting_it_was_given(no_bf16):
 
 def test_an_unknown_precision_is_refused():
     with pytest.raises(ValueError, match="precision must be one of auto, fp32, bf16"):
-        resolve_precision("fp16")
+        detector_arithmetic("fp16")

@@ -17,7 +17,7 @@ larger than any sign in the training frames. A frame at the input size is search
 
 Precision: "fp32", or "bf16", where the convolutions run under bfloat16 autocast (oneDNN's
 AVX-512 BF16 dot products, summing in float32; the maps are decoded in float32), or "auto", which
-is bf16 where oneDNN runs it on this CPU and fp32 elsewhere (`resolve_precision`). bf16 scores
+is bf16 where oneDNN runs it on this CPU and fp32 elsewhere (`cpu_bf16.detector_arithmetic`). bf16 scores
 differ from fp32's by bf16 rounding (`avsim.perception.detector.precision_agreement` measures by
 how much).
 
@@ -39,9 +39,8 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from avsim.config import DETECTOR_PRECISIONS
 from avsim.perception.base import Detection, touches_border
-from avsim.perception.cpu_bf16 import onednn_runs_bf16, require_bf16
+from avsim.perception.cpu_bf16 import detector_arithmetic
 from avsim.perception.detector.letterbox import Letterbox, check_image, fit, to_tensor, warp
 from avsim.perception.detector.postprocess import IOU_THRESHOLD, MAX_DETECTIONS, decode, nms
 from avsim.perception.detector.roi import ALIGN_PX, clip_region, crop_for
@@ -61,25 +60,13 @@ class _Pass(NamedTuple):
     region_in: tuple[float, float, float, float] | None
 
 
-def resolve_precision(precision: str) -> str:
-    """The arithmetic ("fp32" or "bf16") that `perception.detector_precision` asks for on this CPU:
-    "auto" is bf16 where oneDNN runs it, else fp32; "bf16" on a CPU without it is a one-line ConfigError."""
-    if precision not in DETECTOR_PRECISIONS:
-        raise ValueError(f"precision must be one of {', '.join(DETECTOR_PRECISIONS)}, got {precision!r}")
-    if precision == "auto":
-        return "bf16" if onednn_runs_bf16() else "fp32"
-    if precision == "bf16":
-        require_bf16("perception.detector_precision")
-    return precision
-
-
 class SignDetectorRunner:
     """Loads weights once; `detect(image, camera)` returns that frame's signs, highest confidence first."""
 
     def __init__(self, weights_path: str | Path, conf_threshold: float = DEFAULT_CONF_THRESHOLD,
                  iou_threshold: float = IOU_THRESHOLD, max_detections: int = MAX_DETECTIONS,
                  num_threads: int | None = None, precision: str = "fp32", native_pixels: bool = False) -> None:
-        self.precision = resolve_precision(precision)
+        self.precision = detector_arithmetic(precision)
         self.native_pixels = native_pixels
         torch.set_num_threads(num_threads if num_threads is not None else max(1, min(2, os.cpu_count() or 1)))
         model, self.meta = load_weights(weights_path)
