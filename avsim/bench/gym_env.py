@@ -20,6 +20,7 @@ import gymnasium
 from avsim.config import SimConfig, with_overrides
 from avsim.gym import ENV_ID
 from avsim.loop import ClosedLoop
+from avsim.perception.cpu_bf16 import detector_arithmetic
 
 
 def _loop_ms_per_step(config: SimConfig) -> tuple[float, float, list[tuple[float, float]]]:
@@ -77,11 +78,11 @@ def print_env_rows(base: SimConfig, perceptions: tuple[str, ...], repeats: int) 
 
 def _vector_steps_per_s(num_envs: int, steps: int) -> tuple[float, float]:
     """(environment steps per wall second, per CPU second) of `gymnasium.make_vec`'s vector entry point
-    with `num_envs` detector environments (bf16, no images), driven with constant cruise actions."""
+    with `num_envs` detector environments (the default precision, no images), driven with constant cruise actions."""
     import numpy as np
 
     envs = gymnasium.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point", perception="detector",
-                              images=False, config_overrides={"perception": {"detector_precision": "bf16"}})
+                              images=False)
     envs.reset(seed=0)
     actions = np.tile(np.array([0.3, 0.0], np.float32), (num_envs, 1))
     envs.step(actions)  # first frames of each renderer: left out
@@ -96,7 +97,8 @@ def _vector_steps_per_s(num_envs: int, steps: int) -> tuple[float, float]:
 def print_vector_rows(counts: tuple[int, ...] = (1, 8, 32), steps: int = 20) -> None:
     """Steps per second of the vector environment at each of `counts` environments."""
     rates = {count: _vector_steps_per_s(count, steps) for count in counts}
+    arithmetic = detector_arithmetic("auto")  # what the default ran as: bf16 where the CPU has it
     for count, (per_s, per_cpu_s) in rates.items():
         gain = per_cpu_s / rates[counts[0]][1]
-        print(f"  gym make_vec, detector bf16 N={count:<3d}     {per_s:6.1f} env steps/s   ({per_cpu_s:.1f} per CPU second; "
+        print(f"  gym make_vec, detector {arithmetic} N={count:<3d}     {per_s:6.1f} env steps/s   ({per_cpu_s:.1f} per CPU second; "
               f"{gain:.2f}x N={counts[0]}'s per CPU second)")
