@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from avsim.metrics import RunResult
+from avsim.perception.cpu_bf16 import detector_arithmetic
 
 # What each outcome adds after its own word, the JSON's `outcome` (one entry per ALL_OUTCOMES).
 _OUTCOME_DETAIL = {
@@ -32,6 +33,14 @@ def _dist(value: float | None, what: str) -> str:
     return f"{value:.1f} m before the sign" if value is not None else f"never ({what})"
 
 
+def _perception(perception: dict) -> str:
+    """The perception's kind, with the arithmetic the own detector ran in where it runs, e.g. "detector (bf16)"."""
+    kind = perception["kind"]
+    if kind == "detector" or (kind == "ensemble" and "detector" in perception["ensemble_members"]):
+        return f"{kind} ({detector_arithmetic(perception['detector_precision'])})"
+    return kind
+
+
 def format_summary(result: RunResult, wall_s: float) -> str:
     """`avsim run`'s printed summary of one run: the scenario, outcome, time to stop, where braking
     began, first detection, peak speed, stop position [m, world] and simulated time against `wall_s` [s].
@@ -42,7 +51,7 @@ def format_summary(result: RunResult, wall_s: float) -> str:
     brake = (f"{result.dist_at_brake_m:.1f} m before the sign, at {result.speed_at_brake_mps * 3.6:.1f} km/h"
              if result.dist_at_brake_m is not None else "never")
     lines = [
-        f"avsim run: {sc['town']} / {sc['placement']} / policy {cfg['policy']['name']} / perception {cfg['perception']['kind']}"
+        f"avsim run: {sc['town']} / {sc['placement']} / policy {cfg['policy']['name']} / perception {_perception(cfg['perception'])}"
         f" / sign {sc['sign']} / {sc['speed_kmh']:g} km/h / seed {sc['seed']}",
         f"  outcome          {outcome_line(result)}",
         f"  time to stop     {tts}",

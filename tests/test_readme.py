@@ -3,11 +3,13 @@ printed summary has the shape `avsim run` really prints, and a link to every doc
 checks every page shares (commands parse, links resolve, examples run) are in
 tests/test_docs_commands.py."""
 
+import json
 import re
 import shlex
 from pathlib import Path
 
 from avsim.cli import main
+from avsim.perception.cpu_bf16 import detector_arithmetic
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -44,4 +46,7 @@ def test_readme_run_command_runs_and_prints_the_documented_summary(tmp_path, cap
     assert [line.split()[0] for line in printed[:8]] == [line.split()[0] for line in documented[:8]]
     assert printed[0] == documented[0]
     assert printed[1] == documented[1]  # the outcome is physics, identical on every machine
-    assert (tmp_path / "out.json").is_file()
+    record = json.loads((tmp_path / "out.json").read_text())
+    # The config keeps the precision as given; `software` says what it ran as on this CPU.
+    assert record["config"]["perception"]["detector_precision"] == "auto"
+    assert record["software"]["detector_precision_auto"] == detector_arithmetic("auto")

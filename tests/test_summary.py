@@ -52,3 +52,20 @@ def test_a_run_that_had_no_stop_to_make_prints_its_own_outcome(outcome, line_m, 
     assert result.outcome == outcome
     printed = format_summary(result, wall_s=1.0).splitlines()[1].split()
     assert printed[:2] == ["outcome", f"{outcome}:"]
+
+
+@pytest.mark.parametrize("perception, header", [
+    ({"kind": "detector", "detector_precision": "auto"}, "perception detector (fp32)"),
+    ({"kind": "detector", "detector_precision": "fp32"}, "perception detector (fp32)"),
+    ({"kind": "ensemble", "ensemble_members": ["detector", "coco"], "detector_precision": "auto"}, "perception ensemble (fp32)"),
+    ({"kind": "ensemble", "ensemble_members": ["coco", "yolo"], "detector_precision": "auto"}, "perception ensemble /"),
+    ({"kind": "coco"}, "perception coco /"),
+])
+def test_the_header_names_the_arithmetic_the_own_detector_ran_in(monkeypatch, perception, header):
+    # On a CPU without bf16 "auto" is fp32; the config keeps "auto", the summary says what ran.
+    monkeypatch.setattr("avsim.perception.cpu_bf16.onednn_runs_bf16", lambda: False)
+    config = SimConfig().to_dict()
+    config["perception"] = {**config["perception"], **perception}
+    records = [rec(0.0, 80.0), rec(0.05, 79.0, brake=0.85)]
+    result = summarise(records, rec(5.0, 3.0, 0.0), (1.0, -5.5), True, config)
+    assert header in format_summary(result, wall_s=1.0).splitlines()[0]

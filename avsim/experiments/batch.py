@@ -34,20 +34,14 @@ from __future__ import annotations
 import itertools
 import multiprocessing
 import os
-import platform
 from collections.abc import Callable, Collection, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
-
-import mujoco
-import numpy
-import torch
 
 from avsim.errors import ConfigError
 from avsim.experiments.plan import Counted, Group, count_of, group_size, in_flight, lockstep_groups, specs_of
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
 from avsim.experiments.run_task import RunSpec, execute_group, worker_env
-from avsim.perception.cpu_bf16 import detector_arithmetic
 from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
@@ -69,14 +63,6 @@ def resolve_workers(workers: int | None, address: str | None) -> int | None:
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     return workers
-
-
-def software_versions() -> dict[str, str]:
-    """The software and machine a batch ran on, for its manifest; `detector_precision_auto` is what
-    `perception.detector_precision = "auto"` (the default) ran as here."""
-    return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
-            "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "detector_precision_auto": detector_arithmetic("auto")}
 
 
 def check_backend(backend: str, address: str | None = None) -> None:

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from avsim.errors import RunsFailedError
 from avsim.workers import DEFAULT_BATCH
-from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.software import software_versions
 from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output

@@ -33,7 +33,8 @@ from pathlib import Path
 
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
-from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.software import software_versions
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.results_file import read_records
 from avsim.experiments.resumable import manifest_history, run_resumable

@@ -60,7 +60,8 @@ from avsim.config import SimConfig, with_overrides
 from avsim.config_owners import check_read_by_some, identical_runs, set_keys
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
-from avsim.experiments.batch import check_backend, resolve_workers, software_versions
+from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.software import software_versions
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings

@@ -1,0 +1,26 @@
+"""What software and arithmetic a run ran on, for the records that must say so: a batch's manifest
+and `avsim run --json`.
+
+A config holds `perception.detector_precision = "auto"` as given (so that its hash, and a
+resumed batch, do not depend on the CPU); what "auto" ran as is a property of the machine, and
+is recorded here beside the library versions.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+
+import mujoco
+import numpy
+import torch
+
+from avsim.perception.cpu_bf16 import detector_arithmetic
+
+
+def software_versions() -> dict[str, str]:
+    """Python, MuJoCo, torch and numpy versions, the machine, and `detector_precision_auto`: the
+    arithmetic ("fp32" or "bf16") that `perception.detector_precision = "auto"` (the default) runs as here."""
+    return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
+            "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+            "detector_precision_auto": detector_arithmetic("auto")}
