@@ -1,5 +1,4 @@
-"""What software and arithmetic a run ran on, for the records that must say so: a batch's manifest
-and `avsim run --json`.
+"""What software and arithmetic a batch ran on, for its manifest (`versions`).
 
 A config holds `perception.detector_precision = "auto"` as given (so that its hash, and a
 resumed batch, do not depend on the CPU); what "auto" ran as is a property of the machine, and

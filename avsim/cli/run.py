@@ -68,10 +68,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
     if args.json is not None:
-        from avsim.software import software_versions
-
-        # The config holds the precision as given ("auto"); `software` says what it ran as here.
-        write_json_atomic(args.json, {**result.to_json_dict(), "software": software_versions()})
+        write_json_atomic(args.json, result.to_json_dict())
         print(f"  result written to {args.json}")
     return 0
 
