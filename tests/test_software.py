@@ -1,4 +1,4 @@
-"""What a record says the run ran on: the versions, and what the default precision ran as."""
+"""What a batch's manifest says it ran on: the versions, and what the default precision ran as."""
 
 from __future__ import annotations
 
