@@ -49,8 +49,10 @@ MATERIALS = ("flat", "textured")
 # Values of ScenarioConfig.sign_materials (world/sign_materials.py) and .sun_shadow_map_px (world/scene.py; 0: no shadow).
 SIGN_MATERIALS = ("flat", "sheeting")
 SHADOW_MAP_SIZES_PX = (0, 1024, 2048, 4096, 8192)
-# Values of ScenarioConfig.foliage (world/foliage.py).
+# Values of ScenarioConfig.foliage (world/foliage.py), .sky (world/sky.py) and .road_paint (world/surface_textures.py).
 FOLIAGES = ("solid", "clusters")
+SKIES = ("gradient", "daylight")
+ROAD_PAINTS = ("fresh", "worn")
 # A stop sign turned at most this far from facing the car is for the car; one turned at least
 # SIGN_YAW_NOT_OURS_DEG faces the cross street. In between it is ambiguous, and refused.
 SIGN_YAW_FACING_DEG = 30.0
@@ -135,6 +137,14 @@ class ScenarioConfig:
     # filling the same envelope with gaps, at a broadleaf crown's optical porosity (world/foliage.py,
     # docs/realism.md).
     foliage: str = "solid"
+    # The sky: "gradient", MuJoCo's built-in light-blue gradient (the default renders); "daylight", a clear
+    # sky that follows the sun, from Preetham et al.'s model at sky_turbidity (world/sky.py, docs/realism.md).
+    sky: str = "gradient"
+    # The atmosphere's turbidity for sky = "daylight": 2 very clear, 3 clear, 6 hazy (Preetham et al. 1999).
+    sky_turbidity: float = ranged(3.0, 2, 10)
+    # Lane lines, stop line and crosswalk: "fresh", solid paint (the default renders); "worn", paint
+    # abraded off the aggregate and flaked, showing the asphalt through it (world/surface_textures.py).
+    road_paint: str = "fresh"
 
     def __post_init__(self) -> None:
         check_ranges(self, "scenario")
@@ -142,6 +152,8 @@ class ScenarioConfig:
         _require(self.sign_materials in SIGN_MATERIALS,
                  f"scenario.sign_materials must be one of {', '.join(SIGN_MATERIALS)}, got {self.sign_materials!r}")
         _require(self.foliage in FOLIAGES, f"scenario.foliage must be one of {', '.join(FOLIAGES)}, got {self.foliage!r}")
+        _require(self.sky in SKIES, f"scenario.sky must be one of {', '.join(SKIES)}, got {self.sky!r}")
+        _require(self.road_paint in ROAD_PAINTS, f"scenario.road_paint must be one of {', '.join(ROAD_PAINTS)}, got {self.road_paint!r}")
         _require(type(self.sun_shadow_map_px) is int and self.sun_shadow_map_px in SHADOW_MAP_SIZES_PX,
                  f"scenario.sun_shadow_map_px must be one of {', '.join(map(str, SHADOW_MAP_SIZES_PX))} (0: no shadows), "
                  f"got {self.sun_shadow_map_px!r}")

@@ -45,6 +45,8 @@ CHOICES: dict[str, Any] = {
     "scenario.materials": config_module.MATERIALS,
     "scenario.sign_materials": config_module.SIGN_MATERIALS,
     "scenario.foliage": config_module.FOLIAGES,
+    "scenario.sky": config_module.SKIES,
+    "scenario.road_paint": config_module.ROAD_PAINTS,
     "scenario.sun_shadow_map_px": config_module.SHADOW_MAP_SIZES_PX,
     "camera.preset": tuple(config_module.CAMERA_PRESETS),
     "camera.offsamples": config_module.OFFSAMPLES,

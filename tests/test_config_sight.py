@@ -27,7 +27,7 @@ PICTURE_KEYS = ("camera.preset", "camera.width_px", "camera.height_px", "camera.
                 "scenario.distractors", "scenario.layout_seed", "scenario.sign_materials", "scenario.foliage")
 COLOUR_KEYS = ("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
-               "scenario.sun_shadow_map_px")
+               "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint")
 SIDE_KEYS = ("camera.side_fovy_deg", "camera.side_yaw_deg")
 # Keys every run reads, whatever it draws (a sample of each section).
 ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scenario.speed_kmh",
@@ -37,7 +37,7 @@ ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scena
 
 def test_every_conditional_key_is_in_one_group_here():
     grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
-               "vehicle.abs_target_slip", "scenario.sign"]
+               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -51,7 +51,9 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
     expected |= dict.fromkeys(COLOUR_KEYS, (sees and kind in PIXEL) or recorded)
     expected |= dict.fromkeys(SIDE_KEYS, "side" in cameras and (kind != "none" or recorded))
     expected |= {"camera.seg_supersample": sees and kind == "oracle",
-                 "scenario.sign": (sees and kind in PIXEL) or recorded,  # a texture (the default clean one) "scenario.fog_start_m": False,  # no fog by default
+                 "scenario.sign": (sees and kind in PIXEL) or recorded,  # a texture (the default clean one)
+                 "scenario.fog_start_m": False,  # no fog by default
+                 "scenario.sky_turbidity": False,  # the gradient sky by default
                  "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,
@@ -84,6 +86,9 @@ def test_conditions_on_other_keys_fog_seed_and_slip_control():
     with pytest.raises(ConfigError, match=r"vehicle\.abs_target_slip is read only by the anti-lock brakes .* both false"):
         check_read(no_slip_control, {"vehicle.abs_target_slip"})
     check_read(with_overrides(no_slip_control, {"vehicle": {"traction_control_enabled": True}}), {"vehicle.abs_target_slip"})
+    with pytest.raises(ConfigError, match=r"this run's scenario\.sky is gradient \(no daylight sky"):
+        check_read(SimConfig(), {"scenario.sky_turbidity"}, recorded=False)
+    check_read(with_overrides(SimConfig(), {"scenario": {"sky": "daylight"}}), {"scenario.sky_turbidity"}, recorded=False)
     no_jitter = with_overrides(SimConfig(), {"scenario": {"start_jitter_m": 0.0}})
     with pytest.raises(ConfigError, match=r"scenario\.seed .* this run's scenario\.start_jitter_m is 0 and it draws no sensor noise"):
         check_read(no_jitter, {"scenario.seed"})

@@ -49,17 +49,33 @@ _FACADE_COLOURS = {  # wall, window
 }
 
 
-def add_materials(spec: mujoco.MjSpec, textured: bool = False) -> None:
-    """Register every material the builders use, plus the sky. `textured` (scenario.materials):
-    surfaces carry procedural texture at the scale a camera resolves (`avsim.world.surface_textures`)
-    instead of one flat colour each, and facades a storey of wall and window instead of a checker."""
-    spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
-                     rgb1=[0.55, 0.7, 0.9], rgb2=[0.9, 0.93, 0.97], width=256, height=256)
-    if textured:
-        _add_textured_materials(spec)
-        return
+PAINTS = ("paint_white", "paint_yellow")
+
+
+def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool = False) -> None:
+    """Register every material the builders use (the sky is `avsim.world.sky`'s).
+
+    textured (scenario.materials): surfaces carry procedural texture at the scale a camera resolves
+    (`avsim.world.surface_textures`) instead of one flat colour each, and facades a storey of wall and
+    window instead of a checker.
+    worn_paint (scenario.road_paint): the road's paint is worn through to the asphalt beneath it, the
+    textured asphalt or the flat one.
+    """
+    textures = st.ground_textures(_FLAT_COLOURS) if textured else {}
+    if worn_paint:
+        rng = np.random.default_rng((st.TEXTURE_SEED, 2))
+        beneath = textures.get("asphalt", np.full((st.TEXELS, st.TEXELS, 3), np.rint(np.asarray(_FLAT_COLOURS["asphalt"]) * 255), np.uint8))
+        textures.update({name: st.worn_paint(rng, _FLAT_COLOURS[name], beneath) for name in PAINTS})
     for name, rgb in _FLAT_COLOURS.items():
-        spec.add_material(name=name, rgba=[*rgb, 1.0])
+        if name not in textures:
+            spec.add_material(name=name, rgba=[*rgb, 1.0])
+        else:
+            span_m = st.CONCRETE_REPEAT_M if name in st.CONCRETE else st.GROUND_REPEAT_M
+            _add_textured_material(spec, name, textures[name], (1 / span_m, 1 / span_m))
+    if textured:
+        for name, rgb in st.facade_textures(_FACADE_COLOURS).items():
+            _add_textured_material(spec, name, rgb, (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
+        return
     # Facades: a checker texture repeated per metre reads as rows of windows.
     for name, (wall, window) in _FACADE_COLOURS.items():
         spec.add_texture(name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
@@ -68,21 +84,10 @@ def add_materials(spec: mujoco.MjSpec, textured: bool = False) -> None:
         mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
 
 
-def _add_textured_materials(spec: mujoco.MjSpec) -> None:
-    def add(name: str, rgb: np.ndarray, repeat_per_m: tuple[float, float]) -> None:
-        set_texture_data(spec.add_texture(name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D), rgb)
-        mat = spec.add_material(name=name, texrepeat=list(repeat_per_m), texuniform=True)
-        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
-
-    textures = st.ground_textures(_FLAT_COLOURS)
-    for name, rgb in _FLAT_COLOURS.items():
-        if name not in textures:
-            spec.add_material(name=name, rgba=[*rgb, 1.0])
-        else:
-            span_m = st.CONCRETE_REPEAT_M if name in st.CONCRETE else st.GROUND_REPEAT_M
-            add(name, textures[name], (1 / span_m, 1 / span_m))
-    for name, rgb in st.facade_textures(_FACADE_COLOURS).items():
-        add(name, rgb, (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
+def _add_textured_material(spec: mujoco.MjSpec, name: str, rgb: np.ndarray, repeat_per_m: tuple[float, float]) -> None:
+    set_texture_data(spec.add_texture(name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D), rgb)
+    mat = spec.add_material(name=name, texrepeat=list(repeat_per_m), texuniform=True)
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
 
 
 def _geom(spec: mujoco.MjSpec, name: str, kind: int, pos, size, material: str | None = None, rgba=None, quat=None) -> None:

@@ -17,7 +17,7 @@ import numpy as np
 from avsim.config import NO_SIGN, CameraConfig, SimConfig, VehicleConfig
 from avsim.errors import ConfigError
 from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
-from avsim.world import foliage, props
+from avsim.world import foliage, props, sky
 from avsim.world.distractors import add_red_signs
 from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
 from avsim.world import sign_materials
@@ -114,7 +114,8 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     spec = mujoco.MjSpec()
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
-    props.add_materials(spec, textured=scenario.materials == "textured")
+    sky.add_sky(spec, scenario)
+    props.add_materials(spec, textured=scenario.materials == "textured", worn_paint=scenario.road_paint == "worn")
     if sheeting:
         sign_materials.add_metal_materials(spec)
     props.add_ground(spec, town.ground_material)

@@ -16,6 +16,9 @@ with its texels a few millimetres to centimetres across, and repeated over the s
 
 Mean colours are the flat materials' own (`avsim.world.props`), so a texture changes detail, not
 the scene's overall colour. MuJoCo mip-maps the textures, so far surfaces average them as a camera would.
+
+Worn road paint (`scenario.road_paint = "worn"`, with either materials) is drawn here too: unlike the
+textures above it does change the mean colour, since a worn marking shows the asphalt through it.
 """
 
 from __future__ import annotations
@@ -114,6 +117,25 @@ def facade(rng: np.random.Generator, wall_rgb: tuple[float, float, float], glass
     cv2.line(image, (x0, y0 + 45), (x1 - 1, y0 + 45), frame, 4)  # transom
     cv2.rectangle(image, (x0 - 8, y1), (x1 + 7, y1 + 6), (0.8 * wall).tolist(), -1)  # sill
     return _to_uint8(image)
+
+
+# Worn road paint: the share of a marking's area still covered by paint, an assumed figure for a
+# marking some years old and still legible (not measured here, and not fitted to any detector).
+PAINT_RETAINED_FRACTION = 0.75
+
+
+def worn_paint(rng: np.random.Generator, paint_rgb: tuple[float, float, float], asphalt_rgb: np.ndarray) -> np.ndarray:
+    """(TEXELS, TEXELS, 3) uint8 paint worn off in flakes of 1-5 cm and off the aggregate's tips, over
+    `asphalt_rgb` ((TEXELS, TEXELS, 3) uint8, the surface it shows through); 256 texels per 2 m.
+
+    Traffic abrades a marking first where the aggregate stands proud and then flakes it off in patches;
+    PAINT_RETAINED_FRACTION of the texels keep their paint. The paint itself carries a faint grain."""
+    wear = 0.75 * _grain(rng, 2.5) + 0.25 * _grain(rng, 0.6)
+    painted = (wear < np.quantile(wear, PAINT_RETAINED_FRACTION)).astype(np.float32)
+    # The edge of a flake covers part of a texel: soften it by a texel, keeping the retained share.
+    coverage = _blur_tiling(painted, 0.5, 0.5)[..., None]
+    paint = np.asarray(paint_rgb, np.float32) * (1 + 0.04 * _grain(rng, 0.8))[..., None]
+    return _to_uint8(coverage * paint + (1 - coverage) * asphalt_rgb.astype(np.float32) / 255)
 
 
 def ground_textures(flat_colours: dict[str, tuple[float, float, float]]) -> dict[str, np.ndarray]:

@@ -9,7 +9,7 @@ import pytest
 from avsim.config import ScenarioConfig
 from avsim.errors import ConfigError
 from avsim.sensors.gl import OffscreenRenderer
-from avsim.world import foliage, props
+from avsim.world import foliage, props, sky
 from avsim.world.scene import compose_scene
 from helpers import make_config
 
@@ -106,6 +106,7 @@ CAMERA_AZIMUTHS_DEG = (180.0, 225.0)
 def _tree_on_its_own(foliage_name: str) -> mujoco.MjModel:
     """A 9 m tree alone at the origin, seen by a camera 30 m away at each of CAMERA_AZIMUTHS_DEG, aimed at its crown."""
     spec = mujoco.MjSpec()
+    sky.add_sky(spec, ScenarioConfig())
     props.add_materials(spec)
     props.add_tree(spec, "tree", 0.0, 0.0, 9.0)
     if foliage_name == "clusters":

@@ -39,3 +39,41 @@ def test_materials_is_a_named_choice():
     assert ScenarioConfig().materials == "flat"
     with pytest.raises(ConfigError, match="scenario.materials"):
         ScenarioConfig(materials="shiny")
+
+
+def _worn(beneath: np.ndarray) -> np.ndarray:
+    return surface_textures.worn_paint(np.random.default_rng(5), props._FLAT_COLOURS["paint_white"], beneath)
+
+
+def test_worn_paint_keeps_its_share_of_paint_and_shows_the_surface_beneath_elsewhere(ground):
+    worn = _worn(ground["asphalt"]).astype(float)
+    paint = np.asarray(props._FLAT_COLOURS["paint_white"]) * 255
+    nearer_paint = np.linalg.norm(worn - paint, axis=2) < np.linalg.norm(worn - ground["asphalt"].astype(float), axis=2)
+    assert abs(nearer_paint.mean() - surface_textures.PAINT_RETAINED_FRACTION) < 0.03
+    # Where the paint is gone, the texels are the asphalt's own (its grain and stones show through).
+    gone = ~nearer_paint
+    assert np.abs(worn[gone] - ground["asphalt"][gone]).mean() < 25
+    assert np.array_equal(worn, _worn(ground["asphalt"]).astype(float))
+
+
+def test_road_paint_is_a_named_choice_and_fresh_paint_is_flat():
+    assert ScenarioConfig().road_paint == "fresh"
+    with pytest.raises(ConfigError, match="scenario.road_paint"):
+        ScenarioConfig(road_paint="faded")
+
+
+def test_worn_paint_gives_the_paint_materials_a_texture_and_leaves_the_others_alone():
+    import mujoco
+
+    def model(worn_paint: bool) -> mujoco.MjModel:
+        spec = mujoco.MjSpec()
+        props.add_materials(spec, worn_paint=worn_paint)
+        return spec.compile()
+
+    fresh, worn = model(False), model(True)
+    for name in props.PAINTS:
+        assert fresh.mat_texid[fresh.material(name).id].max() == -1
+        assert worn.mat_texid[worn.material(name).id].max() >= 0
+    assert fresh.nmat == worn.nmat
+    for name in ("asphalt", "grass", "facade_brick"):
+        assert np.array_equal(fresh.mat_rgba[fresh.material(name).id], worn.mat_rgba[worn.material(name).id])
