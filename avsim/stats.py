@@ -29,3 +29,14 @@ def rate_with_interval(hits: int, n: int) -> str:
         return "–"
     lo, hi = wilson_interval(hits, n)
     return f"{hits}/{n} ({lo:.2f}–{hi:.2f})"
+
+
+def sign_test_p(gained: int, lost: int) -> float:
+    """Exact two-sided sign test (binomial, p = 1/2) of paired outcomes that changed: `gained` went one
+    way and `lost` the other; the pairs that did not change carry no information and are left out.
+    1.0 when nothing changed."""
+    changed = gained + lost
+    if changed == 0:
+        return 1.0
+    tail = sum(math.comb(changed, k) for k in range(min(gained, lost) + 1)) / 2 ** changed
+    return min(1.0, 2 * tail)

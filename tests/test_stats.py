@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from avsim.stats import rate_with_interval, wilson_interval
+from avsim.stats import rate_with_interval, sign_test_p, wilson_interval
 
 
 def test_wilson_interval_matches_the_closed_form_and_stays_in_zero_one():
@@ -29,3 +29,11 @@ def test_wilson_bounds_are_exactly_0_and_1_at_no_hits_and_all_hits(n):
     assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0
     low, high = wilson_interval(n // 2, n)
     assert low <= (n // 2) / n <= high
+
+
+def test_the_sign_test_is_the_exact_binomial_tail_both_ways():
+    assert sign_test_p(0, 0) == 1.0
+    assert sign_test_p(10, 0) == pytest.approx(2 / 2 ** 10)  # 0.00195
+    assert sign_test_p(0, 10) == sign_test_p(10, 0)
+    assert sign_test_p(8, 1) == pytest.approx(2 * (1 + 9) / 2 ** 9)  # 0.039
+    assert sign_test_p(3, 3) == 1.0  # capped: the two tails overlap

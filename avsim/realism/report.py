@@ -15,7 +15,7 @@ import numpy as np
 from avsim.perception.ap import average_precision
 from avsim.realism.frame_set import BIN_WIDTH_M, DEFAULT_MAX_DIST_M, bin_edges_m
 from avsim.realism.settings import NETWORKS, SETTINGS
-from avsim.stats import rate_with_interval, wilson_interval
+from avsim.stats import rate_with_interval, sign_test_p, wilson_interval
 
 POOLED_RANGE_M = (10.0, 40.0)
 
@@ -156,6 +156,36 @@ def summary_table(rows: list[dict]) -> list[str]:
     return lines
 
 
+def _frame_key(row: dict) -> tuple:
+    return row["town"], row["scene"], row["frame"], row["camera"], row["network"]
+
+
+def paired_table(rows: list[dict]) -> list[str]:
+    """Each setting against the first (in SETTINGS' order), on the same sign frames: per network, camera and
+    span of `distance_spans`, "gained / lost" (signs found only under the setting / only under the first)
+    with the exact two-sided sign test's p over the pairs that changed. Empty with one setting."""
+    settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
+    if len(settings) < 2:
+        return []
+    reference = {_frame_key(r): r for r in sign_rows(rows) if r["setting"] == settings[0]}
+    spans = distance_spans(rows)
+    lines = ["| network | setting | " + " | ".join(f"{camera} {_span_name(span)}" for camera in ("front", "side") for span in spans)
+             + " |", "|---|---|" + "---|" * (2 * len(spans))]
+    for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
+        for setting in settings[1:]:
+            cells = []
+            for camera in ("front", "side"):
+                for span in spans:
+                    pairs = [(r["found"], reference[_frame_key(r)]["found"]) for r in sign_rows(rows)
+                             if r["setting"] == setting and r["network"] == network and r["camera"] == camera
+                             and _in_bin(r["dist_m"], *span) and _frame_key(r) in reference]
+                    gained = sum(found and not was for found, was in pairs)
+                    lost = sum(was and not found for found, was in pairs)
+                    cells.append(f"{gained} / {lost} (p {sign_test_p(gained, lost):.2g})" if pairs else "–")
+            lines.append(f"| {network} | {setting} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def cost_table(rows: list[dict]) -> list[str]:
     """Per setting: CPU time of a frame's render (median and mean [ms]), each frame counted once."""
     first = min({r["network"] for r in rows}, key=list(NETWORKS).index)
@@ -179,6 +209,7 @@ def report(rows: list[dict], threshold: float) -> str:
              "(sign views and roadside views). Render CPU time includes Mesa's GL threads.", "",
              "## Render settings and their cost", "", *cost_table(rows), "",
              "## Summary: recall pooled over towns (IoU >= 0.5), false stop signs, AP", "", *summary_table(rows), "",
+             *_paired_section(rows),
              "## Stop-sign AP at IoU 0.5 (every frame)", "", *ap_table(rows), "",
              "## False stop signs per frame", "", *false_stop_table(rows), "",
              "## Frames with a false stop sign, by distance to the sign", "",
@@ -191,6 +222,16 @@ def report(rows: list[dict], threshold: float) -> str:
         lines += [f"## {NETWORKS[network]} ({network}), front camera: recall, box centred on the sign", "",
                   *recall_table(rows, network, "front", "found_centred"), ""]
     return "\n".join(lines)
+
+
+def _paired_section(rows: list[dict]) -> list[str]:
+    table = paired_table(rows)
+    if not table:
+        return []
+    first = _ordered({r["setting"] for r in rows}, list(SETTINGS))[0]
+    return [f"## Paired against {first}: signs found only under the setting / only under {first}", "",
+            "The same sign frames under both, every town; p: the exact two-sided sign test over the frames whose outcome "
+            "differs (a small p says the setting moves recall one way).", "", *table, ""]
 
 
 def write_figure(rows: list[dict], path: Path) -> None:

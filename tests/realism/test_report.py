@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from avsim.realism.report import (ap_table, false_stop_by_distance_table, false_stop_table, recall_table, report,
-                                  summary_table, write_figure)
+from avsim.realism.report import (ap_table, false_stop_by_distance_table, false_stop_table, paired_table, recall_table,
+                                  report, summary_table, write_figure)
 from avsim.stats import rate_with_interval
 
 
@@ -76,6 +76,21 @@ def test_the_report_covers_every_setting_and_network():
     assert "| photo | camera.supersample=2" in text and "## own detector (detector), side camera" in text
     two, one = rate_with_interval(2, 2), rate_with_interval(1, 1)  # 12 and 33 m pooled, 57 m beyond 40 m
     assert f"| coco | photo | {two} | {one} | {two} | {one} | 0.000 (0/6) | 1.000 |" in text
+
+
+def test_the_paired_table_counts_signs_found_under_one_setting_only_frame_by_frame():
+    # Frames 0-3 at 10-40 m: baseline finds 0 and 1, lens finds 1, 2 and 3 (gains 2 and 3, loses 0);
+    # frame 4 at 45 m is found by both; frame 5 only by lens, but is a roadside view (not a sign frame).
+    found = {"baseline": (True, True, False, False, True, False), "lens": (False, True, True, True, True, True)}
+    rows = [_row(setting=setting, frame=k, dist_m=(12.0, 20.0, 30.0, 35.0, 45.0, None)[k], found=hit,
+                 n_truth=0 if k == 5 else 1)
+            for setting, hits in found.items() for k, hit in enumerate(hits)]
+    line = next(line for line in paired_table(rows) if line.startswith("| coco | lens"))
+    cells = [c.strip() for c in line.split("|")[3:-1]]
+    assert cells[:2] == ["2 / 1 (p 1)", "0 / 0 (p 1)"]
+    assert cells[2] == "–"  # no side-camera frames
+    assert paired_table([r for r in rows if r["setting"] == "baseline"]) == []
+    assert "## Paired against baseline" in report(rows, 0.5)
 
 
 @pytest.mark.slow  # matplotlib's import and layout: about 5 s here
