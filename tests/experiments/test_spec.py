@@ -42,8 +42,8 @@ SHIPPED["table3_coco.toml"] = SHIPPED["table3_yolo.toml"] = SHIPPED["table3_stop
 SHIPPED["table3_yolo_clusters.toml"] = SHIPPED["table3_stop_positions.toml"]
 # The COCO closed loop in Town10 under three scenes (flat, sheeting, sheeting and textured)
 SHIPPED["coco_detector_realism.toml"] = [("clean", policy) for _ in range(3 * 2) for policy in ("baseline", "adjusted")]
-# Table III's four cells that see, under four scenes (flat, textured, clusters, all)
-SCENES_OF_TABLE3_REALISM = ("flat", "textured", "clusters", "all")
+# Table III's four cells that see, under six scenes (flat, textured, clusters, all, daylight, no_shadows)
+SCENES_OF_TABLE3_REALISM = ("flat", "textured", "clusters", "all", "daylight", "no_shadows")
 SHIPPED["table3_realism.toml"] = SHIPPED["table3_stop_positions.toml"][:4] * len(SCENES_OF_TABLE3_REALISM)
 # file name -> seeds per cell, where not 5
 SEEDS = {"coco_detector_realism.toml": 10, "table3_realism.toml": 10}
@@ -121,13 +121,14 @@ def test_the_coco_realism_file_is_coco_detectors_town10_cells_under_three_scenes
     _assert_runs_are_the_references_under_scenes(realism, coco, scenes)
 
 
-def test_the_table3_realism_file_is_table3s_cells_under_four_scenes():
+def test_the_table3_realism_file_is_table3s_cells_under_six_scenes():
     realism = load_experiment(EXPERIMENTS_DIR / "table3_realism.toml")
     table3 = load_experiment(TABLE3)
     # Each scene is one of `avsim realism`'s settings, so the benchmark and `attack eval --setting` measure it too.
     scenes = {scene: dict(SETTINGS[setting].overrides["scenario"]) if setting != "baseline" else {}
               for scene, setting in (("flat", "baseline"), ("textured", "textured"), ("clusters", "clusters"),
-                                     ("all", "textured_sheeting_clusters_shadows"))}
+                                     ("all", "textured_sheeting_clusters_shadows"), ("daylight", "daylight_sky"),
+                                     ("no_shadows", "full_scene_no_shadows"))}
     assert scenes["all"] == {"materials": "textured", "sign_materials": "sheeting", "foliage": "clusters",
                              "sun_shadow_map_px": 4096}
     assert tuple(scenes) == SCENES_OF_TABLE3_REALISM
