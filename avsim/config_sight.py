@@ -114,7 +114,7 @@ def _fog_start_unmet(config: SimConfig, sight: Sight) -> str:
     return _colour_unmet(config, sight) if not sight.colour else "scenario.fog_end_m is 0 (clear air: no fog is drawn)"
 
 
-def _sky_turbidity_unmet(config: SimConfig, sight: Sight) -> str:
+def _daylight_sky_unmet(config: SimConfig, sight: Sight) -> str:
     return _colour_unmet(config, sight) if not sight.colour else f"scenario.sky is {config.scenario.sky} (no daylight sky is drawn)"
 
 
@@ -142,10 +142,10 @@ FOG_START = Condition(
     lambda config, sight: sight.colour and config.scenario.fog_end_m > 0,
     "a run in fog (scenario.fog_end_m > 0) that draws colour images (see scenario.fog_end_m)",
     _fog_start_unmet, "set scenario.fog_end_m beyond it, in a run that draws colour images")
-SKY_TURBIDITY = Condition(
+DAYLIGHT_SKY = Condition(
     lambda config, sight: sight.colour and config.scenario.sky == "daylight",
     "a run under the daylight sky (scenario.sky = daylight) that draws colour images",
-    _sky_turbidity_unmet, "set scenario.sky = daylight, in a run that draws colour images")
+    _daylight_sky_unmet, "set scenario.sky = daylight, in a run that draws colour images")
 SEEDED = Condition(
     lambda config, sight: config.scenario.start_jitter_m > 0 or (
         sight.perceives and sight.kind in FRAME_DETECTORS and config.perception.sensor_noise_std > 0),
@@ -175,7 +175,7 @@ RUN_CONDITIONS: dict[str, Condition] = {
                      "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
                      "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint"), COLOUR),
     "scenario.fog_start_m": FOG_START,
-    "scenario.sky_turbidity": SKY_TURBIDITY,
+    **dict.fromkeys(("scenario.sky_turbidity", "scenario.sky_exposure_ev"), DAYLIGHT_SKY),
     # A texture over another (alpha dropped, the same square face) changes only colour pixels; over
     # `none` it puts a stop sign where there was none, read by every run: `avsim run --config`
     # leaves scenario.sign out of its check where the cell has none (`avsim.cli.run`).

@@ -37,7 +37,7 @@ ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scena
 
 def test_every_conditional_key_is_in_one_group_here():
     grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
-               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity"]
+               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity", "scenario.sky_exposure_ev"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -53,7 +53,7 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
     expected |= {"camera.seg_supersample": sees and kind == "oracle",
                  "scenario.sign": (sees and kind in PIXEL) or recorded,  # a texture (the default clean one)
                  "scenario.fog_start_m": False,  # no fog by default
-                 "scenario.sky_turbidity": False,  # the gradient sky by default
+                 "scenario.sky_turbidity": False, "scenario.sky_exposure_ev": False,  # the gradient sky by default
                  "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,

@@ -21,7 +21,8 @@ Exposure is not modelled by the classic renderer, whose lights were set for the 
 the daylight sky is scaled to the gradient sky's mean luminance over the upper hemisphere
 (solid-angle weighted, in linear light): the same overall brightness, distributed and coloured as
 a clear sky with this sun. Around the sun it then exceeds the 8-bit range and clips to white, as a
-camera exposed for the ground does.
+camera exposed for the ground does. `scenario.sky_exposure_ev` moves that level by whole or part stops,
+to measure what the choice does.
 
 Directions are in the world frame (x along the road, z up). The skybox is a cube map stored as six
 square faces one above the other; `cube_directions` gives each texel's direction in MuJoCo's
@@ -82,7 +83,7 @@ def add_sky(spec: mujoco.MjSpec, scenario: ScenarioConfig) -> None:
         raise ValueError(f"unknown sky {scenario.sky!r}; one of {', '.join(SKIES)}")
     sun = sun_direction(scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
     texture = spec.add_texture(name=SKY_TEXTURE_NAME, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX)
-    set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity))
+    set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, exposure_ev=scenario.sky_exposure_ev))
 
 
 def sun_direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
@@ -168,12 +169,13 @@ def upper_hemisphere_mean_luminance(rgb_linear: np.ndarray, texels: int) -> floa
     return float((rgb_linear @ _LUMINANCE_WEIGHTS * weights).sum() / weights.sum())
 
 
-def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIGHT_TEXELS) -> np.ndarray:
+def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIGHT_TEXELS, exposure_ev: float = 0.0) -> np.ndarray:
     """(6 * texels, texels, 3) uint8 sRGB skybox of the clear sky for the sun in direction `sun` ((3,)
-    unit, world frame), scaled to the gradient sky's mean luminance over the upper hemisphere."""
+    unit, world frame), scaled to the gradient sky's mean luminance over the upper hemisphere times
+    2 ** `exposure_ev` [stops]."""
     x, _, luminance = preetham_xyY(cube_directions(texels), sun, turbidity)
     rgb = linear_srgb(x, on_daylight_locus(x), luminance)
     # A saturated blue can fall just outside sRGB's gamut; clip it to the gamut before scaling.
     rgb = np.maximum(rgb, 0.0)
-    rgb *= GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels)
+    rgb *= 2.0 ** exposure_ev * GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels)
     return np.rint(srgb_encode(rgb) * 255).astype(np.uint8)

@@ -111,6 +111,11 @@ def test_the_scene_draws_the_daylight_sky_of_its_own_sun_and_the_gradient_by_def
     toward_east = (directions[..., 0] > 0.9) & (directions[..., 2] > 0)
     assert east[toward_east].mean() > west[toward_east].mean() + 10
     assert not np.array_equal(sky_of(sky="daylight", sky_turbidity=6.0), sky_of(sky="daylight"))
+    darker = sky_of(sky="daylight", sun_azimuth_deg=0.0, sky_exposure_ev=-1.0).astype(float)
+    # One stop down halves the linear light of every texel that did not clip (to rounding).
+    unclipped = east.max(axis=-1) < 250
+    halved = sky.srgb_decode(darker[unclipped] / 255) / sky.srgb_decode(east[unclipped] / 255)
+    assert np.median(halved) == pytest.approx(0.5, abs=0.02)
 
 
 def test_sky_is_a_named_choice_and_turbidity_is_ranged():
