@@ -142,8 +142,9 @@ class ScenarioConfig:
     sky: str = "gradient"
     # The atmosphere's turbidity for sky = "daylight": 2 very clear, 3 clear, 6 hazy (Preetham et al. 1999).
     sky_turbidity: float = ranged(3.0, 2, 10)
-    # The daylight sky's brightness against the scene, in stops: 0 puts its mean luminance at the gradient
-    # sky's; +1 doubles it (more of it clips to white), -1 halves it. The classic renderer has no exposure.
+    # The sky's brightness against the scene, in stops: 0 is the gradient's colours, and the daylight sky at the
+    # gradient's mean luminance; +1 doubles the sky's light (more of it clips to white), -1 halves it. The
+    # classic renderer has no exposure, so this level is a choice (docs/realism.md measures what it decides).
     sky_exposure_ev: float = ranged(0.0, -3, 3, unit="EV")
     # Lane lines, stop line and crosswalk: "fresh", solid paint (the default renders); "worn", paint
     # abraded off the aggregate and flaked, showing the asphalt through it (world/surface_textures.py).

@@ -173,9 +173,9 @@ RUN_CONDITIONS: dict[str, Condition] = {
                      "scenario.foliage"), PICTURE),
     **dict.fromkeys(("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                      "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
-                     "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint"), COLOUR),
+                     "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint", "scenario.sky_exposure_ev"), COLOUR),
     "scenario.fog_start_m": FOG_START,
-    **dict.fromkeys(("scenario.sky_turbidity", "scenario.sky_exposure_ev"), DAYLIGHT_SKY),
+    "scenario.sky_turbidity": DAYLIGHT_SKY,
     # A texture over another (alpha dropped, the same square face) changes only colour pixels; over
     # `none` it puts a stop sign where there was none, read by every run: `avsim run --config`
     # leaves scenario.sign out of its check where the cell has none (`avsim.cli.run`).

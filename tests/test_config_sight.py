@@ -27,7 +27,7 @@ PICTURE_KEYS = ("camera.preset", "camera.width_px", "camera.height_px", "camera.
                 "scenario.distractors", "scenario.layout_seed", "scenario.sign_materials", "scenario.foliage")
 COLOUR_KEYS = ("camera.supersample", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
-               "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint")
+               "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint", "scenario.sky_exposure_ev")
 SIDE_KEYS = ("camera.side_fovy_deg", "camera.side_yaw_deg")
 # Keys every run reads, whatever it draws (a sample of each section).
 ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scenario.speed_kmh",
@@ -37,7 +37,7 @@ ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scena
 
 def test_every_conditional_key_is_in_one_group_here():
     grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
-               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity", "scenario.sky_exposure_ev"]
+               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -53,7 +53,7 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
     expected |= {"camera.seg_supersample": sees and kind == "oracle",
                  "scenario.sign": (sees and kind in PIXEL) or recorded,  # a texture (the default clean one)
                  "scenario.fog_start_m": False,  # no fog by default
-                 "scenario.sky_turbidity": False, "scenario.sky_exposure_ev": False,  # the gradient sky by default
+                 "scenario.sky_turbidity": False,  # the gradient sky by default
                  "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,

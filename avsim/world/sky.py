@@ -22,7 +22,8 @@ the daylight sky is scaled to the gradient sky's mean luminance over the upper h
 (solid-angle weighted, in linear light): the same overall brightness, distributed and coloured as
 a clear sky with this sun. Around the sun it then exceeds the 8-bit range and clips to white, as a
 camera exposed for the ground does. `scenario.sky_exposure_ev` moves that level by whole or part stops,
-to measure what the choice does.
+to measure what the choice does; it moves the gradient sky's two colours the same way (MuJoCo then blends
+them in display values, so a stop there is a stop at the zenith and at the nadir).
 
 Directions are in the world frame (x along the road, z up). The skybox is a cube map stored as six
 square faces one above the other; `cube_directions` gives each texel's direction in MuJoCo's
@@ -74,16 +75,26 @@ _LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
 def add_sky(spec: mujoco.MjSpec, scenario: ScenarioConfig) -> None:
     """Register the skybox texture named SKY_TEXTURE_NAME for `scenario.sky`: the built-in gradient, or
     the daylight sky of the scenario's sun (its elevation and azimuth, as `avsim.world.scene` lights
-    the scene) at `scenario.sky_turbidity` (2 very clear, 3 clear, 6 hazy)."""
+    the scene) at `scenario.sky_turbidity` (2 very clear, 3 clear, 6 hazy). Either is brightened or
+    darkened by `scenario.sky_exposure_ev` stops."""
     if scenario.sky == "gradient":
+        zenith, nadir = (exposed_rgb(rgb, scenario.sky_exposure_ev) for rgb in (GRADIENT_ZENITH_RGB, GRADIENT_NADIR_RGB))
         spec.add_texture(name=SKY_TEXTURE_NAME, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
-                         rgb1=list(GRADIENT_ZENITH_RGB), rgb2=list(GRADIENT_NADIR_RGB), width=GRADIENT_TEXELS, height=GRADIENT_TEXELS)
+                         rgb1=zenith, rgb2=nadir, width=GRADIENT_TEXELS, height=GRADIENT_TEXELS)
         return
     if scenario.sky != "daylight":
         raise ValueError(f"unknown sky {scenario.sky!r}; one of {', '.join(SKIES)}")
     sun = sun_direction(scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
     texture = spec.add_texture(name=SKY_TEXTURE_NAME, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX)
     set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, exposure_ev=scenario.sky_exposure_ev))
+
+
+def exposed_rgb(rgb: tuple[float, float, float], exposure_ev: float) -> list[float]:
+    """A display (sRGB) colour in [0, 1] with its linear light scaled by 2 ** `exposure_ev`, clipped to
+    white; the colour itself at 0 (exactly, so that the default sky is unchanged)."""
+    if exposure_ev == 0:
+        return list(rgb)
+    return [float(v) for v in srgb_encode(srgb_decode(np.asarray(rgb)) * 2.0 ** exposure_ev)]
 
 
 def sun_direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:

@@ -118,6 +118,21 @@ def test_the_scene_draws_the_daylight_sky_of_its_own_sun_and_the_gradient_by_def
     assert np.median(halved) == pytest.approx(0.5, abs=0.02)
 
 
+def test_exposure_moves_the_gradient_skys_colours_by_stops_and_leaves_the_default_alone():
+    assert sky.exposed_rgb(sky.GRADIENT_ZENITH_RGB, 0.0) == list(sky.GRADIENT_ZENITH_RGB)
+    darker = sky.srgb_decode(np.asarray(sky.exposed_rgb(sky.GRADIENT_ZENITH_RGB, -1.0)))
+    assert darker == pytest.approx(sky.srgb_decode(np.asarray(sky.GRADIENT_ZENITH_RGB)) / 2)
+    assert sky.exposed_rgb(sky.GRADIENT_NADIR_RGB, 1.0) == pytest.approx([1.0, 1.0, 1.0])  # twice its light clips to white
+
+    def gradient_texture(exposure_ev: float) -> np.ndarray:
+        spec = mujoco.MjSpec()
+        sky.add_sky(spec, ScenarioConfig(sky_exposure_ev=exposure_ev))
+        return _texture(spec.compile()).astype(float)
+
+    zenith_row = sky.GRADIENT_TEXELS * 2 + sky.GRADIENT_TEXELS // 2  # the middle of the "up" face
+    assert gradient_texture(-1.0)[zenith_row].mean() < gradient_texture(0.0)[zenith_row].mean() - 30
+
+
 def test_sky_is_a_named_choice_and_turbidity_is_ranged():
     assert ScenarioConfig().sky == "gradient"
     with pytest.raises(ConfigError, match="scenario.sky"):
