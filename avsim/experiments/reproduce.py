@@ -54,7 +54,8 @@ STUDY_EXPERIMENTS = ("table3_stop_positions", "table1_clean_defended", "table2_a
 # `avsim reproduce --all` adds every other experiment file: the additions beyond the study, the constant
 # sensitivity, the COCO network's closed loop, and the attack files (experiments/attacks/); paths relative
 # to EXPERIMENTS_DIR.
-MORE_EXPERIMENTS = ("adaptive_attacker", "wet_road", "sensitivity", "table3_realism", "coco_detector", "coco_detector_realism",
+MORE_EXPERIMENTS = ("adaptive_attacker", "wet_road", "sensitivity", "sky_brightness", "table3_realism", "coco_detector",
+                    "coco_detector_realism",
                     "table3_coco",
                     "attacks/success_town07", "attacks/success_towns", "attacks/range_inflation_adjusted",
                     "attacks/driveby_detector_town07", "attacks/success_coco", "attacks/success_coco_towns",

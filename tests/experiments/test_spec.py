@@ -45,8 +45,11 @@ SHIPPED["coco_detector_realism.toml"] = [("clean", policy) for _ in range(3 * 2)
 # Table III's four cells that see, under six scenes (flat, textured, clusters, all, daylight, no_shadows)
 SCENES_OF_TABLE3_REALISM = ("flat", "textured", "clusters", "all", "daylight", "no_shadows")
 SHIPPED["table3_realism.toml"] = SHIPPED["table3_stop_positions.toml"][:4] * len(SCENES_OF_TABLE3_REALISM)
+# Table III's yang cells (baseline, side_camera) at seven sky levels, and the clean sign at the two ends
+SKY_LEVELS_EV = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
+SHIPPED["sky_brightness.toml"] = [("clean", "baseline")] * 2 + [("yang", p) for _ in SKY_LEVELS_EV for p in ("baseline", "side_camera")]
 # file name -> seeds per cell, where not 5
-SEEDS = {"coco_detector_realism.toml": 10, "table3_realism.toml": 10}
+SEEDS = {"coco_detector_realism.toml": 10, "table3_realism.toml": 10, "sky_brightness.toml": 10}
 # file name -> the report section it declares
 REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.toml": "table1",
                "table2_attacked_defended.toml": "table2", "fig3_detection.toml": "fig3",
@@ -54,7 +57,7 @@ REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.to
                "coco_detector.toml": "stop_rates", "yolo_detector.toml": "stop_rates",
                "table3_coco.toml": "table3", "table3_yolo.toml": "table3",
                "table3_yolo_clusters.toml": "table3", "coco_detector_realism.toml": "cells",
-               "table3_realism.toml": "cells"}
+               "table3_realism.toml": "cells", "sky_brightness.toml": "cells"}
 # file name -> the perception its runs see through (avsim's own detector where not named)
 PERCEPTION_KIND = {"coco_detector.toml": "coco", "yolo_detector.toml": "yolo", "table3_coco.toml": "coco",
                    "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo", "coco_detector_realism.toml": "coco"}
@@ -133,6 +136,16 @@ def test_the_table3_realism_file_is_table3s_cells_under_six_scenes():
                              "sun_shadow_map_px": 4096}
     assert tuple(scenes) == SCENES_OF_TABLE3_REALISM
     _assert_runs_are_the_references_under_scenes(realism, table3, scenes)
+
+
+def test_the_sky_brightness_file_is_table3s_cells_with_only_the_skys_level_changed():
+    sky = load_experiment(EXPERIMENTS_DIR / "sky_brightness.toml")
+    table3 = load_experiment(TABLE3)
+    levels = {(f"{ev:+.1f} EV" if ev else "0.0 EV"): {"sky_exposure_ev": ev} for ev in SKY_LEVELS_EV}
+    _assert_runs_are_the_references_under_scenes(sky, table3, levels)
+    # At 0 EV the runs are Table III's own, config for config: the default sky.
+    zero = [run for run in sky.runs() if run.cell_name.endswith(", 0.0 EV")]
+    assert zero and all(run.config.scenario.sky_exposure_ev == 0.0 for run in zero)
 
 
 def _assert_runs_are_the_references_under_scenes(realism, reference, scenes: dict[str, dict]) -> None:
