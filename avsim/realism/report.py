@@ -167,7 +167,8 @@ def paired_table(rows: list[dict]) -> list[str]:
     settings = _ordered({r["setting"] for r in rows}, list(SETTINGS))
     if len(settings) < 2:
         return []
-    reference = {_frame_key(r): r for r in sign_rows(rows) if r["setting"] == settings[0]}
+    signs = sign_rows(rows)
+    reference = {_frame_key(r): r for r in signs if r["setting"] == settings[0]}
     spans = distance_spans(rows)
     lines = ["| network | setting | " + " | ".join(f"{camera} {_span_name(span)}" for camera in ("front", "side") for span in spans)
              + " |", "|---|---|" + "---|" * (2 * len(spans))]
@@ -176,7 +177,7 @@ def paired_table(rows: list[dict]) -> list[str]:
             cells = []
             for camera in ("front", "side"):
                 for span in spans:
-                    pairs = [(r["found"], reference[_frame_key(r)]["found"]) for r in sign_rows(rows)
+                    pairs = [(r["found"], reference[_frame_key(r)]["found"]) for r in signs
                              if r["setting"] == setting and r["network"] == network and r["camera"] == camera
                              and _in_bin(r["dist_m"], *span) and _frame_key(r) in reference]
                     gained = sum(found and not was for found, was in pairs)
