@@ -103,11 +103,17 @@ def sun_direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
     return np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
 
 
+def _face_grid(texels: int) -> tuple[np.ndarray, np.ndarray]:
+    """(texels, texels) coordinates s (along a row) and t (down the face) of a cube face's texel centres, in (-1, 1)."""
+    centres = (np.arange(texels) + 0.5) / texels * 2 - 1
+    s, t = np.meshgrid(centres, centres)
+    return s, t
+
+
 def cube_directions(texels: int) -> np.ndarray:
     """(6 * texels, texels, 3) unit world direction of each texel of a MuJoCo skybox texture, faces stacked
     top to bottom in the order MuJoCo reads them (+x, -x, up, down, -y, +y), row 0 at the top of each face."""
-    centres = (np.arange(texels) + 0.5) / texels * 2 - 1
-    s, t = np.meshgrid(centres, centres)  # s along a row, t down the face
+    s, t = _face_grid(texels)
     one = np.ones_like(s)
     # OpenGL's cube-map faces (+X, -X, +Y, -Y, +Z, -Z), in its y-up frame ...
     faces = [(one, -t, -s), (-one, -t, s), (s, one, t), (s, -one, -t), (s, -t, one), (-s, -t, -one)]
@@ -118,8 +124,7 @@ def cube_directions(texels: int) -> np.ndarray:
 
 def cube_solid_angles(texels: int) -> np.ndarray:
     """(6 * texels, texels) solid angle [sr] of each texel of `cube_directions`; they sum to 4 pi."""
-    centres = (np.arange(texels) + 0.5) / texels * 2 - 1
-    s, t = np.meshgrid(centres, centres)
+    s, t = _face_grid(texels)
     face = (2 / texels) ** 2 / (1 + s * s + t * t) ** 1.5
     return np.tile(face, (6, 1))
 
