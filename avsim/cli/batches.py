@@ -11,6 +11,7 @@ from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG
 from avsim.errors import ConfigError
 from avsim.cli.recording_modes import add_recording_modes
 from avsim.outputs import FOLDER, add_input_argument, add_output_argument
+from avsim.realism.settings import BASELINE, SETTINGS
 from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 
@@ -22,7 +23,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         raise ConfigError("give --out (a new reproduction's parent folder) or --resume FOLDER (the one to finish), not both")
     out = reproduce(args.out or "results", resume=args.resume, quick=args.quick, seeds=args.seeds, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
-                    rrd=args.rrd_mode, mcap=args.mcap_mode)
+                    rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting)
     print((out / "report.md").read_text())
     print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd_mode}, --mcap {args.mcap_mode}) "
                                                              f"under {out}/rrd/ and {out}/mcap/" if args.rrd_mode != "none" or args.mcap_mode != "none" else ""))
@@ -85,6 +86,10 @@ def add_commands(sub) -> None:
                              "the rest with the same selection flags, then write the report")
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
+    rep.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
+                     help="render every run under one of `avsim realism`'s settings, as if its keys stood in each file's "
+                          f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; docs/realism.md); "
+                          "a file that sets one of its keys itself is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     add_recording_modes(rep)

@@ -11,7 +11,10 @@ from typing import Any
 
 from avsim.cli.overrides import merge_overrides, parse_set
 from avsim.config import LoopConfig, ScenarioConfig
+from avsim.config_owners import dotted_keys
+from avsim.errors import ConfigError
 from avsim.outputs import add_input_argument
+from avsim.realism.settings import RenderSetting
 from avsim.validation import config_flag, number_flag
 
 SEED_FLAG = config_flag(ScenarioConfig, "seed")
@@ -50,8 +53,23 @@ def flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
     return merge_overrides(overrides, parse_set(args.set))
 
 
-def config_from_args(args: argparse.Namespace):
-    """The `SimConfig` the scenario flags and --set describe, over the defaults."""
+def config_from_args(args: argparse.Namespace, setting: RenderSetting | None = None):
+    """The `SimConfig` the scenario flags and --set describe, over the defaults and over `setting`
+    (`avsim run --setting`); a key both set is a one-line ConfigError (`refuse_setting_clash`)."""
     from avsim.config import SimConfig, with_overrides
 
-    return with_overrides(SimConfig(), flag_overrides(args))
+    overrides = flag_overrides(args)
+    setting_overrides = {} if setting is None else setting.config_overrides()
+    refuse_setting_clash(setting, overrides)
+    return with_overrides(with_overrides(SimConfig(), setting_overrides), overrides)
+
+
+def refuse_setting_clash(setting: RenderSetting | None, overrides: dict[str, Any]) -> None:
+    """A one-line ConfigError where the flags' `overrides` set a key that the render `setting` sets:
+    the flags would quietly undo part of the setting the user asked for."""
+    if setting is None:
+        return
+    clash = dotted_keys(setting.config_overrides()) & dotted_keys(overrides)
+    if clash:
+        raise ConfigError(f"{', '.join(sorted(clash))} is set by --setting {setting.name} and again by the flags; "
+                          "leave out one of them")

@@ -6,9 +6,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from avsim.cli.flags import add_scenario_flags, config_from_args, flag_overrides
+from avsim.cli.flags import add_scenario_flags, config_from_args, flag_overrides, refuse_setting_clash
 from avsim.errors import ConfigError
 from avsim.outputs import FILE, add_input_argument, add_output_argument
+from avsim.realism.settings import BASELINE, SETTINGS
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -16,10 +17,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from avsim.runner import run_recorded
     from avsim.summary import format_summary
 
+    setting = SETTINGS[args.setting]
     if args.config and Path(args.config).suffix == ".jsonl":
         from avsim.config import with_overrides
         from avsim.experiments.rerun_record import config_from_results
 
+        if args.setting != BASELINE:
+            raise ConfigError("--setting applies to an experiment file or to the flags; a results file's runs already "
+                              "carry the render setting they ran under, so leave out --setting")
         # A batch's results file: the run's resolved config, as it ran; the flags apply on top.
         overrides = flag_overrides(args)
         seed = args.seed if args.seed is not None else 0
@@ -27,12 +32,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         config = with_overrides(base, overrides)
     elif args.config:
         from avsim.config import with_overrides
+        from avsim.experiments.render_setting import under_setting
         from avsim.experiments.spec import load_experiment
 
         # The flags and --set apply on top of the cell, as they do on top of the defaults
         # (same precedence: --set over flags over the cell).
         overrides = flag_overrides(args)
-        experiment = load_experiment(args.config)
+        refuse_setting_clash(setting, overrides)
+        experiment = under_setting(load_experiment(args.config), setting)  # as `avsim reproduce --setting` runs it
         cell = experiment.cell(args.cell)
         # Run (cell, seed) exactly as the experiment's batch would, [vary] draws included;
         # the seed is 0 unless --seed or --set scenario.seed names another.
@@ -43,7 +50,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--cell needs --config FILE.toml (the experiment file that holds the cell)")
     else:
         base = None  # the defaults: a clean stop sign
-        config = config_from_args(args)
+        config = config_from_args(args, setting)
     from avsim.config import NO_SIGN
     from avsim.config_owners import check_read, set_keys
     from avsim.experiments.spec import check_run_names
@@ -95,4 +102,8 @@ def add_commands(sub) -> None:
     add_input_argument(run, "--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
                                       "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")
     run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell of an experiment file)")
+    run.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
+                     help="render under one of `avsim realism`'s settings (docs/realism.md), under the flags and the "
+                          "experiment file's cell, as `avsim reproduce --setting` runs it; a key it sets may not be set "
+                          f"again by --set or the file (default {BASELINE}, the default renders)")
     run.set_defaults(func=_cmd_run)

@@ -42,8 +42,10 @@ from avsim.experiments.run_task import RunSpec
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
+from avsim.experiments.render_setting import under_setting
 from avsim.experiments.spec import Experiment, load_experiment
 from avsim.metrics import write_json_atomic
+from avsim.realism.settings import BASELINE, SETTINGS
 
 EXPERIMENTS_DIR = Path(__file__).resolve().parents[2] / "experiments"
 # `avsim reproduce` (`make run`): the study's tables and figure, report order; 105 runs. Issue 25 gives
@@ -69,16 +71,19 @@ YOLO_EXPERIMENTS = ("yolo_detector", "table3_yolo", "table3_yolo_clusters", "att
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,
-               yes: bool = False, seeds: int | None = None) -> list[Experiment]:
+               yes: bool = False, seeds: int | None = None, setting: str = BASELINE) -> list[Experiment]:
     """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
     experiment file); `quick` keeps one seed per cell, `seeds` runs seeds 0 .. seeds - 1 in every
-    cell instead of each file's own count. yes: allow a plan of more than
+    cell instead of each file's own count. setting: one of `avsim realism`'s render settings, applied
+    to every cell (`avsim.experiments.render_setting`). yes: allow a plan of more than
     `plan_size.RUNS_WITHOUT_YES` runs (counted before any run is built)."""
     if quick and seeds is not None:
         raise ConfigError("--quick runs one seed per cell and --seeds N runs N; give one of them")
     names = STUDY_EXPERIMENTS + (MORE_EXPERIMENTS if everything else ())
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in names]
-    experiments = [load_experiment(path) for path in paths]
+    if setting not in SETTINGS:
+        raise ConfigError(f"unknown render setting {setting!r}; choose one of {', '.join(SETTINGS)} (docs/realism.md)")
+    experiments = [under_setting(load_experiment(path), SETTINGS[setting]) for path in paths]
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
@@ -111,11 +116,15 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
               workers: int | None = None,
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
               address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False,
-              rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP, resume: str | os.PathLike | None = None) -> Path:
+              rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP, resume: str | os.PathLike | None = None,
+              setting: str = BASELINE) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
 
     seeds: run seeds 0 .. seeds - 1 in every cell instead of each file's own count (`quick`: one).
+
+    setting: render every run under one of `avsim realism`'s settings (`avsim.realism.settings`), as if
+    its keys stood in each file's [defaults]; a file that sets one of them itself is refused.
 
     resume: a results folder of an earlier `reproduce` to finish instead of making a new one under
     `results_root`: its ok runs are kept and the rest run (module docstring).
@@ -127,7 +136,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     """
     if everything and experiment_paths:
         raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
-    experiments = load_study(experiment_paths, quick, everything, yes, seeds)
+    experiments = load_study(experiment_paths, quick, everything, yes, seeds, setting)
     check_modes(rrd, mcap)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
@@ -142,6 +151,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     selection = " ".join(part for part in (
         "--all" if everything else "", "--quick" if quick else "", f"--seeds {seeds}" if seeds is not None else "",
         "--experiments " + " ".join(map(str, experiment_paths)) if experiment_paths else "",
+        f"--setting {setting}" if setting != BASELINE else "",
         f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address else "",
         recording_flags(rrd, mcap).strip()) if part)
     # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no new folder.

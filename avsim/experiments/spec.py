@@ -44,7 +44,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from avsim.config import NO_SIGN, SimConfig, with_overrides
-from avsim.config_owners import check_read, check_read_by_some, set_keys
+from avsim.config_owners import check_read, check_read_by_some, dotted_keys, set_keys
 from avsim.errors import AvsimError, ConfigError
 from avsim.experiments.plan_size import MAX_RUNS
 
@@ -73,10 +73,13 @@ class Cell:
     """One named cell of a table or figure: a fully resolved config.
 
     `config.scenario.seed` is the default (0); `Experiment.runs()` sets it per run.
+    keys_set: the dotted keys the file sets for this cell, in [defaults] or the cell itself
+    (`scenario.town`, ...): what a render setting applied over the file must leave alone.
     """
 
     name: str
     config: SimConfig
+    keys_set: frozenset[str] = frozenset()
 
 
 class Run(NamedTuple):
@@ -237,7 +240,7 @@ def _parse_cells(path: Path, raw_cells: Any, defaults: dict[str, Any],
             for key, low, high in vary:
                 for value in (low, high):
                     with_overrides(config, nested(key, value))
-        cells.append(Cell(name, config))
+        cells.append(Cell(name, config, dotted_keys(deep_merge(defaults, overrides))))
     return tuple(cells)
 
 

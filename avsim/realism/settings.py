@@ -44,9 +44,12 @@ ISP_JPEG_QUALITY = 90
 # about the size of a pixel at 26 m with the study camera.
 SHADOW_MAP_PX = 4096
 
+# The setting that changes nothing: the default renders.
+BASELINE = "baseline"
+
 _PHOTO = {"supersample": 2, "lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX, "jpeg_quality": ISP_JPEG_QUALITY}
 SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
-    RenderSetting("baseline", {}, "the default renderer: one sample per pixel, an ideal lens, no encoding"),
+    RenderSetting(BASELINE, {}, "the default renderer: one sample per pixel, an ideal lens, no encoding"),
     RenderSetting("msaa4", {"camera": {"offsamples": 4}}, "MuJoCo's 4x multisampling: the renderer's edge anti-aliasing"),
     RenderSetting("ss2", {"camera": {"supersample": 2}}, "a photosite integrates light over its area: 2x2 samples, box mean"),
     RenderSetting("lens", {"camera": {"lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX}}, "a real lens's blur, MTF50 0.33 cycles/px"),

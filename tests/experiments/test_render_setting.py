@@ -1,0 +1,127 @@
+"""An experiment file under a render setting (`avsim reproduce --setting`): the same configs as the
+file with the setting's keys in [defaults], and a refusal where the file sets one of them itself."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from avsim import cli
+from avsim.errors import ConfigError
+from avsim.experiments.render_setting import under_setting
+from avsim.experiments.reproduce import reproduce
+from avsim.experiments.results_file import read_records
+from avsim.experiments.spec import load_experiment
+from avsim.realism.settings import SETTINGS
+
+FILE = """
+title = "A stand-in"
+seeds = 2
+[defaults]
+scenario = {{ town = "town07", speed_kmh = 40, start_speed_kmh = 40, start_dist_m = 50{extra} }}
+perception = {{ kind = "oracle" }}
+[vary]
+scenario = {{ sun_elevation_deg = [30, 70]{vary} }}
+[[cells]]
+name = "baseline"
+policy = {{ name = "baseline" }}
+[[cells]]
+name = "side camera"
+policy = {{ name = "side_camera" }}
+{cell}
+"""
+
+
+def _write(tmp_path, name="stand_in.toml", extra="", vary="", cell=""):
+    path = tmp_path / name
+    path.write_text(FILE.format(extra=extra, vary=vary, cell=cell))
+    return path
+
+
+def test_every_run_under_a_setting_is_the_run_of_the_file_with_its_keys_in_defaults(tmp_path):
+    setting = SETTINGS["full_scene_no_shadows"]
+    keys = ", ".join(f'{key} = "{value}"' for key, value in setting.overrides["scenario"].items())
+    under = under_setting(load_experiment(_write(tmp_path)), setting)
+    by_hand = load_experiment(_write(tmp_path, "by_hand.toml", extra=", " + keys))
+    assert under.runs() == by_hand.runs()  # configs, [vary] draws included
+    assert under.runs()[0].config.scenario.foliage == "clusters"
+    assert "full_scene_no_shadows" in under.title and "scenario.sky=daylight" in under.title
+
+
+def test_the_baseline_setting_leaves_the_experiment_as_it_is(tmp_path):
+    experiment = load_experiment(_write(tmp_path))
+    assert under_setting(experiment, SETTINGS["baseline"]) is experiment
+
+
+@pytest.mark.parametrize("where, file_args", [
+    ('cell "flat"', {"cell": '[[cells]]\nname = "flat"\nscenario = { materials = "flat" }\npolicy = { name = "baseline" }'}),
+    ('cell "baseline"', {"extra": ', materials = "flat"'}),  # [defaults] reach every cell
+    ("[vary]", {"vary": ", road_friction = [0.5, 0.9]"}),
+])
+def test_a_file_that_sets_a_key_of_the_setting_is_refused_naming_the_key(tmp_path, where, file_args):
+    experiment = load_experiment(_write(tmp_path, **file_args))
+    setting = SETTINGS["textured"] if "vary" not in file_args else _road_setting()
+    with pytest.raises(ConfigError) as err:
+        under_setting(experiment, setting)
+    message = str(err.value)
+    assert where in message and ("scenario.materials" in message or "scenario.road_friction" in message)
+    assert "without --setting" in message and "\n" not in message
+
+
+def _road_setting():
+    """A setting over a key the stand-in's [vary] can draw (no shipped setting sets a drawn key)."""
+    from avsim.realism.settings import RenderSetting
+
+    return RenderSetting("wet", {"scenario": {"road_friction": 0.5}}, "a wet road")
+
+
+@pytest.fixture(scope="module")
+def batch(tmp_path_factory):
+    """A reproduction of the stand-in under `worn_paint`: (the file, the results folder)."""
+    root = tmp_path_factory.mktemp("under_setting")
+    path = _write(root)
+    return path, reproduce(root / "results", workers=1, experiment_paths=[path], progress=False, rrd="none",
+                           setting="worn_paint")
+
+
+def test_reproduce_under_a_setting_runs_it_and_says_so(batch):
+    _, out = batch
+    records = read_records(out / "runs.jsonl")
+    assert len(records) == 4 and all(r["status"] == "ok" for r in records)
+    assert all(r["result"]["config"]["scenario"]["road_paint"] == "worn" for r in records)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert "--setting worn_paint" in manifest["command"]
+    assert "render setting worn_paint" in manifest["experiments"]["stand_in"]["title"]
+    assert "render setting worn_paint" in (out / "report.md").read_text()
+
+
+def test_avsim_run_with_the_same_setting_replays_a_batched_run_bit_for_bit(batch, tmp_path):
+    path, out = batch
+    target = next(r for r in read_records(out / "runs.jsonl") if r["cell"] == "side camera" and r["seed"] == 1)
+    result_json = tmp_path / "again.json"
+    code = cli.main(["run", "--config", str(path), "--cell", "side camera", "--seed", "1", "--setting", "worn_paint",
+                     "--json", str(result_json)])
+    assert code == 0 and json.loads(result_json.read_text()) == target["result"]
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--setting", "textured", "--set", "scenario.materials=flat"], "scenario.materials is set by --setting textured"),
+    (["--config", "RESULTS", "--cell", "baseline", "--setting", "clusters"], "leave out --setting"),
+    (["--config", "FILE", "--setting", "worn_paint", "--set", "scenario.road_paint=fresh"], "scenario.road_paint is set"),
+])
+def test_avsim_run_refuses_a_setting_the_flags_or_a_results_file_would_undo(batch, tmp_path, capsys, argv, expected):
+    path, out = batch
+    argv = [str(out / "runs.jsonl") if a == "RESULTS" else str(path) if a == "FILE" else a for a in argv]
+    code = cli.main(["run", *argv, "--json", str(tmp_path / "run.json")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and expected in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_refused_setting_fails_in_one_line_and_writes_nothing(tmp_path, capsys):
+    path = _write(tmp_path, extra=', materials = "flat"')
+    code = cli.main(["reproduce", "--experiments", str(path), "--setting", "textured", "--out", str(tmp_path / "results")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "scenario.materials" in err
+    assert not (tmp_path / "results").exists()
