@@ -44,9 +44,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
     from avsim.experiments.leaderboard import DEFAULT_FILE, load_leaderboard
     from avsim.experiments.leaderboard_run import run_leaderboard
+    from avsim.experiments.render_setting import board_under_setting
 
     # Checks the plan's size, then every run, before anything runs or is written.
-    board = load_leaderboard(args.file or DEFAULT_FILE, quick=args.quick, yes=args.yes)
+    board = board_under_setting(load_leaderboard(args.file or DEFAULT_FILE, quick=args.quick, yes=args.yes),
+                                SETTINGS[args.setting])
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
                           progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch,
                           rrd=args.rrd_mode, mcap=args.mcap_mode)
@@ -64,6 +66,14 @@ def _add_pool_flags(parser: argparse.ArgumentParser, workers_help: str, backend_
     parser.add_argument("--backend", choices=("local", "ray"), default="local", help=backend_help)
     parser.add_argument("--batch", type=BATCH_FLAG, default=DEFAULT_BATCH, metavar="N", help=BATCH_HELP)
     parser.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
+
+
+def _add_setting_flag(parser: argparse.ArgumentParser, what: str, refused: str) -> None:
+    """--setting NAME: one of `avsim realism`'s render settings under `what` (`avsim.experiments.render_setting`)."""
+    parser.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
+                        help=f"render {what} under one of `avsim realism`'s settings, as if its keys stood in the file's "
+                             f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; "
+                             f"docs/realism.md); {refused} that sets one of its keys itself is refused")
 
 
 def add_commands(sub) -> None:
@@ -86,10 +96,7 @@ def add_commands(sub) -> None:
                              "the rest with the same selection flags, then write the report")
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
-    rep.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
-                     help="render every run under one of `avsim realism`'s settings, as if its keys stood in each file's "
-                          f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; docs/realism.md); "
-                          "a file that sets one of its keys itself is refused")
+    _add_setting_flag(rep, "every run", "a file")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     add_recording_modes(rep)
@@ -119,6 +126,7 @@ def add_commands(sub) -> None:
                     BACKEND_HELP)
     board.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
+    _add_setting_flag(board, "every run of the board", "its [defaults], a defence, a condition or an availability scenario")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_recording_modes(board)
     board.set_defaults(func=_cmd_leaderboard)

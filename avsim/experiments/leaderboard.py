@@ -54,11 +54,12 @@ from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
-from avsim.config_owners import check_read, check_read_by_some, set_keys
+from avsim.config_owners import check_read, check_read_by_some, dotted_keys, set_keys
 from avsim.errors import ConfigError
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import MAX_RUNS, check_plan_size
 from avsim.experiments.run_task import RunSpec
+from avsim.realism.settings import BASELINE
 from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
 
@@ -148,6 +149,8 @@ class Leaderboard:
     defences: tuple[Defence, ...]
     places: tuple[Place, ...]
     availability: tuple[Availability, ...]
+    defaults_keys: frozenset[str] = frozenset()  # the dotted keys the file's [defaults] sets
+    setting: str = BASELINE  # the render setting it runs under (`avsim leaderboard --setting`)
 
     @property
     def name(self) -> str:
@@ -250,7 +253,7 @@ def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, ye
     availability = tuple(_parse_availability(path, index, item, {d.name for d in defences})
                          for index, item in enumerate(raw.get("availability", [])))
     _unique(path, "availability", [a.name for a in availability])
-    board = Leaderboard(path, title, base, vary, conditions, defences, places, availability)
+    board = Leaderboard(path, title, base, vary, conditions, defences, places, availability, dotted_keys(defaults))
     check_plan_size(board.size(quick), f"{path}: {len(defences)} defences", yes=yes)
     _check_runs(board)
     _check_keys_read(board, defaults)

@@ -19,6 +19,7 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
 from avsim.software import software_versions
 from avsim.experiments.leaderboard import Leaderboard
+from avsim.realism.settings import BASELINE
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
@@ -51,7 +52,8 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
     plan = board.plan(quick).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
                f"--batch {batch}" if batch != DEFAULT_BATCH else "",
-               f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else ""]
+               f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address is not None else "",
+               f"--setting {board.setting}" if board.setting != BASELINE else ""]
     command = " ".join([f"avsim leaderboard {board.path} --out {out}", *filter(None, options)]) + recording_flags(rrd, mcap)
 
     started = time.perf_counter()

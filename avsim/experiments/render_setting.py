@@ -1,11 +1,13 @@
-"""An experiment file run under one of `avsim realism`'s render settings (`avsim reproduce --setting`).
+"""An experiment or leaderboard file run under one of `avsim realism`'s render settings
+(`avsim reproduce --setting`, `avsim leaderboard --setting`, `avsim run --setting`).
 
 A setting (`avsim.realism.settings.SETTINGS`: textured surfaces, see-through crowns, a daylight sky, a
 camera preset, ...) is a group of config overrides. Applied over an experiment file it gives every cell
 the same overrides, as if they stood in the file's [defaults]: each run's config, and so its config hash
 and result, is what a copy of the file with those keys in [defaults] gives. A file that already sets one of
-the setting's keys, in [defaults], a cell or [vary], is refused: the setting would silently replace the
-file's own choice (Table III's `flat` cell would render textured), so the user must choose.
+the setting's keys (in [defaults], a cell, [vary], or a leaderboard's defence, condition or availability
+scenario) is refused: the setting would silently replace the file's own choice (Table III's `flat` cell
+would render textured), so the user must choose.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import dataclasses
 from avsim.config import with_overrides
 from avsim.config_owners import dotted_keys
 from avsim.errors import ConfigError
+from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.spec import Cell, Experiment
 from avsim.realism.settings import RenderSetting
 
@@ -27,17 +30,10 @@ def under_setting(experiment: Experiment, setting: RenderSetting) -> Experiment:
     setting_keys = dotted_keys(overrides)
     if not setting_keys:
         return experiment
-    varied = setting_keys & {key for key, _, _ in experiment.vary}
-    if varied:
-        raise ConfigError(f"{experiment.path}: its [vary] draws {', '.join(sorted(varied))}, which --setting {setting.name} "
-                          "sets; run the file without --setting, or choose a setting that leaves that key to the file")
+    _refuse_clash(experiment.path, "its [vary]", {key for key, _, _ in experiment.vary}, setting)
     cells = []
     for cell in experiment.cells:
-        clash = setting_keys & cell.keys_set
-        if clash:
-            raise ConfigError(f"{experiment.path}: cell \"{cell.name}\" sets {', '.join(sorted(clash))}, which --setting "
-                              f"{setting.name} sets too; run the file without --setting, or choose a setting that leaves "
-                              "that key to the file")
+        _refuse_clash(experiment.path, f'cell "{cell.name}"', cell.keys_set, setting)
         try:
             config = with_overrides(cell.config, overrides)
         except ConfigError as exc:
@@ -45,3 +41,35 @@ def under_setting(experiment: Experiment, setting: RenderSetting) -> Experiment:
         cells.append(Cell(cell.name, config, cell.keys_set | setting_keys))
     return dataclasses.replace(experiment, title=f"{experiment.title} (render setting {setting.name}: {setting.describe()})",
                                cells=tuple(cells))
+
+
+def board_under_setting(board: Leaderboard, setting: RenderSetting) -> Leaderboard:
+    """`board` with `setting`'s overrides under every run (in its base config, below each defence,
+    condition, place and availability scenario), its title naming the setting; the board itself for
+    `baseline`. ConfigError, naming the key and where the file sets it, where the file sets a key the
+    setting sets."""
+    overrides = setting.config_overrides()
+    if not dotted_keys(overrides):
+        return board
+    layers = [("[defaults]", board.defaults_keys), ("[vary]", {key for key, _, _ in board.vary})]
+    layers += [(f'condition "{name}"', dotted_keys(c.overrides)) for name, c in board.conditions.items()]
+    for defence in board.defences:
+        layers += [(f'defence "{defence.name}"', dotted_keys(defence.overrides)),
+                   (f'defence "{defence.name}"\'s adaptive condition', dotted_keys(defence.adaptive.overrides))]
+    layers += [(f'availability scenario "{a.name}"', dotted_keys(a.overrides)) for a in board.availability]
+    for where, keys in layers:
+        _refuse_clash(board.path, where, keys, setting)
+    try:
+        base = with_overrides(board.base, overrides)
+    except ConfigError as exc:
+        raise ConfigError(f"{board.path} under --setting {setting.name}: {exc}") from None
+    return dataclasses.replace(board, base=base, setting=setting.name,
+                               title=f"{board.title} (render setting {setting.name}: {setting.describe()})")
+
+
+def _refuse_clash(path, where: str, keys_set, setting: RenderSetting) -> None:
+    """A one-line ConfigError where `where` in the file at `path` sets one of `setting`'s keys."""
+    clash = dotted_keys(setting.config_overrides()) & frozenset(keys_set)
+    if clash:
+        raise ConfigError(f"{path}: {where} sets {', '.join(sorted(clash))}, which --setting {setting.name} sets too; "
+                          "run the file without --setting, or choose a setting that leaves that key to the file")

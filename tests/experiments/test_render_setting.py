@@ -1,15 +1,18 @@
-"""An experiment file under a render setting (`avsim reproduce --setting`): the same configs as the
-file with the setting's keys in [defaults], and a refusal where the file sets one of them itself."""
+"""An experiment or leaderboard file under a render setting (`avsim reproduce --setting`, `avsim run
+--setting`, `avsim leaderboard --setting`): the same configs as the file with the setting's keys in
+[defaults], and a refusal where the file sets one of them itself."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
 from avsim import cli
 from avsim.errors import ConfigError
-from avsim.experiments.render_setting import under_setting
+from avsim.experiments.leaderboard import load_leaderboard
+from avsim.experiments.render_setting import board_under_setting, under_setting
 from avsim.experiments.reproduce import reproduce
 from avsim.experiments.results_file import read_records
 from avsim.experiments.spec import load_experiment
@@ -125,3 +128,68 @@ def test_a_refused_setting_fails_in_one_line_and_writes_nothing(tmp_path, capsys
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "scenario.materials" in err
     assert not (tmp_path / "results").exists()
+
+
+# ---- a leaderboard under a setting -----------------------------------------------------------------
+
+BOARD = """
+title = "tiny board"
+[defaults]
+scenario = {{ town = "town07", placement = "standard", speed_kmh = 85, start_speed_kmh = 85, start_dist_m = 70 }}
+perception = {{ kind = "oracle" }}
+[conditions.clean]
+scenario = {{ sign = "clean" }}
+[conditions.strongest]
+scenario = {{ sign = "yang" }}
+[[defences]]
+name = "baseline"
+policy = {{ name = "baseline" }}
+adaptive = {{ scenario = {{ sign = "yang"{adaptive} }} }}
+[[places]]
+town = "town07"
+placement = "standard"
+seeds = 1
+quick_seeds = 1
+[[availability]]
+name = "no stop sign"
+scenario = {{ sign = "none" }}
+seeds = 1
+"""
+LEADERBOARDS = Path(__file__).resolve().parents[2] / "experiments" / "leaderboards"
+
+
+def test_a_board_under_a_setting_is_the_board_with_its_keys_in_defaults():
+    # The shipped see-through-crowns board is the three-network board with one key added to [defaults].
+    under = board_under_setting(load_leaderboard(LEADERBOARDS / "three_networks.toml"), SETTINGS["clusters"])
+    by_hand = load_leaderboard(LEADERBOARDS / "three_networks_clusters.toml")
+    assert [(r.label, r.seed, r.config) for r in under.runs()] == [(r.label, r.seed, r.config) for r in by_hand.runs()]
+    assert under.setting == "clusters" and "render setting clusters" in under.title
+
+
+def test_a_board_that_sets_a_key_of_the_setting_is_refused_naming_where(tmp_path):
+    path = tmp_path / "board.toml"
+    path.write_text(BOARD.format(adaptive=', road_paint = "fresh"'))
+    with pytest.raises(ConfigError, match='defence "baseline"\'s adaptive condition sets scenario.road_paint'):
+        board_under_setting(load_leaderboard(path), SETTINGS["worn_paint"])
+
+
+def test_avsim_leaderboard_under_a_setting_runs_it_and_says_so(tmp_path, capsys):
+    path = tmp_path / "board.toml"
+    path.write_text(BOARD.format(adaptive=""))
+    out = tmp_path / "out"
+    assert cli.main(["leaderboard", str(path), "--out", str(out), "--workers", "1", "--no-progress", "--rrd", "none",
+                     "--setting", "worn_paint"]) == 0
+    records = read_records(out / "results.jsonl")
+    assert records and all(r["result"]["config"]["scenario"]["road_paint"] == "worn" for r in records)
+    assert "--setting worn_paint" in json.loads((out / "manifest.json").read_text())["command"]
+    assert "render setting worn_paint" in (out / "leaderboard.md").read_text()
+    capsys.readouterr()
+
+
+def test_avsim_leaderboard_refuses_a_setting_its_file_sets_in_one_line_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = cli.main(["leaderboard", str(LEADERBOARDS / "three_networks_clusters.toml"), "--out", str(out),
+                     "--setting", "clusters"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "[defaults] sets scenario.foliage" in err
+    assert not out.exists()
