@@ -31,9 +31,11 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from avsim.experiments.render_setting import sweep_under_setting
     from avsim.experiments.sweep import load_sweep, run_sweep
 
-    sweep = load_sweep(args.file, yes=args.yes)  # checks the size, then every grid value, before anything runs
+    # Checks the size, then every grid value, before anything runs.
+    sweep = sweep_under_setting(load_sweep(args.file, yes=args.yes), SETTINGS[args.setting])
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "summary.md").read_text())
@@ -73,7 +75,7 @@ def _add_setting_flag(parser: argparse.ArgumentParser, what: str, refused: str) 
     parser.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
                         help=f"render {what} under one of `avsim realism`'s settings, as if its keys stood in the file's "
                              f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; "
-                             f"docs/realism.md); {refused} that sets one of its keys itself is refused")
+                             f"docs/realism.md); {refused}")
 
 
 def add_commands(sub) -> None:
@@ -96,7 +98,7 @@ def add_commands(sub) -> None:
                              "the rest with the same selection flags, then write the report")
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
-    _add_setting_flag(rep, "every run", "a file")
+    _add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     add_recording_modes(rep)
@@ -112,6 +114,7 @@ def add_commands(sub) -> None:
                     "cluster or the one at --address (pip install 'avsim[ray]')")
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
+    _add_setting_flag(swp, "every run of the grid", "a file whose [defaults] or [grid] sets one of its keys is refused")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
     swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
     add_recording_modes(swp)
@@ -126,7 +129,8 @@ def add_commands(sub) -> None:
                     BACKEND_HELP)
     board.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
-    _add_setting_flag(board, "every run of the board", "its [defaults], a defence, a condition or an availability scenario")
+    _add_setting_flag(board, "every run of the board", "a file that sets one of its keys (in [defaults], [vary], a defence, "
+                                                       "a condition or an availability scenario) is refused")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_recording_modes(board)
     board.set_defaults(func=_cmd_leaderboard)

@@ -1,12 +1,12 @@
 """An experiment or leaderboard file run under one of `avsim realism`'s render settings
-(`avsim reproduce --setting`, `avsim leaderboard --setting`, `avsim run --setting`).
+(`avsim reproduce`, `sweep`, `leaderboard` and `run`, each with `--setting NAME`).
 
 A setting (`avsim.realism.settings.SETTINGS`: textured surfaces, see-through crowns, a daylight sky, a
 camera preset, ...) is a group of config overrides. Applied over an experiment file it gives every cell
 the same overrides, as if they stood in the file's [defaults]: each run's config, and so its config hash
 and result, is what a copy of the file with those keys in [defaults] gives. A file that already sets one of
-the setting's keys (in [defaults], a cell, [vary], or a leaderboard's defence, condition or availability
-scenario) is refused: the setting would silently replace the file's own choice (Table III's `flat` cell
+the setting's keys (in [defaults], a cell, [vary], a sweep's [grid], or a leaderboard's defence, condition
+or availability scenario) is refused: the setting would silently replace the file's own choice (Table III's `flat` cell
 would render textured), so the user must choose.
 """
 
@@ -19,6 +19,7 @@ from avsim.config_owners import dotted_keys
 from avsim.errors import ConfigError
 from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.spec import Cell, Experiment
+from avsim.experiments.sweep import Sweep
 from avsim.realism.settings import RenderSetting
 
 
@@ -48,23 +49,37 @@ def board_under_setting(board: Leaderboard, setting: RenderSetting) -> Leaderboa
     condition, place and availability scenario), its title naming the setting; the board itself for
     `baseline`. ConfigError, naming the key and where the file sets it, where the file sets a key the
     setting sets."""
-    overrides = setting.config_overrides()
-    if not dotted_keys(overrides):
-        return board
     layers = [("[defaults]", board.defaults_keys), ("[vary]", {key for key, _, _ in board.vary})]
     layers += [(f'condition "{name}"', dotted_keys(c.overrides)) for name, c in board.conditions.items()]
     for defence in board.defences:
         layers += [(f'defence "{defence.name}"', dotted_keys(defence.overrides)),
                    (f'defence "{defence.name}"\'s adaptive condition', dotted_keys(defence.adaptive.overrides))]
     layers += [(f'availability scenario "{a.name}"', dotted_keys(a.overrides)) for a in board.availability]
+    return _base_under_setting(board, layers, setting)
+
+
+def sweep_under_setting(sweep: Sweep, setting: RenderSetting) -> Sweep:
+    """`sweep` with `setting`'s overrides under every grid point (in its base config), its title naming
+    the setting; the sweep itself for `baseline`. ConfigError where its [defaults] or [grid] sets a key
+    the setting sets."""
+    return _base_under_setting(sweep, [("[defaults]", sweep.defaults_keys), ("[grid]", {key for key, _ in sweep.grid})],
+                               setting)
+
+
+def _base_under_setting(plan_file, layers, setting: RenderSetting):
+    """A leaderboard or sweep (`path`, `title`, `base`, `setting`) with `setting`'s overrides in its base
+    config, after refusing any of `layers` ((where, dotted keys it sets)) that sets one of them."""
+    overrides = setting.config_overrides()
+    if not dotted_keys(overrides):
+        return plan_file
     for where, keys in layers:
-        _refuse_clash(board.path, where, keys, setting)
+        _refuse_clash(plan_file.path, where, keys, setting)
     try:
-        base = with_overrides(board.base, overrides)
+        base = with_overrides(plan_file.base, overrides)
     except ConfigError as exc:
-        raise ConfigError(f"{board.path} under --setting {setting.name}: {exc}") from None
-    return dataclasses.replace(board, base=base, setting=setting.name,
-                               title=f"{board.title} (render setting {setting.name}: {setting.describe()})")
+        raise ConfigError(f"{plan_file.path} under --setting {setting.name}: {exc}") from None
+    return dataclasses.replace(plan_file, base=base, setting=setting.name,
+                               title=f"{plan_file.title} (render setting {setting.name}: {setting.describe()})")
 
 
 def _refuse_clash(path, where: str, keys_set, setting: RenderSetting) -> None:

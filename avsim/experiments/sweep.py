@@ -57,7 +57,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.config import SimConfig, with_overrides
-from avsim.config_owners import check_read_by_some, identical_runs, set_keys
+from avsim.config_owners import check_read_by_some, dotted_keys, identical_runs, set_keys
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
@@ -70,6 +70,7 @@ from avsim.experiments.plan import Plan
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
+from avsim.realism.settings import BASELINE
 
 TOP_LEVEL_KEYS = ("title", "seeds", "defaults", "grid")
 DEFAULT_SEEDS = 1
@@ -107,6 +108,8 @@ class Sweep:
     seeds: int
     base: SimConfig
     grid: tuple[tuple[str, tuple[Scalar, ...]], ...]
+    defaults_keys: frozenset[str] = frozenset()  # the dotted keys the file's [defaults] sets
+    setting: str = BASELINE  # the render setting it runs under (`avsim sweep --setting`)
 
     @property
     def name(self) -> str:
@@ -184,7 +187,7 @@ def load_sweep(path: str | os.PathLike, *, yes: bool = False) -> Sweep:
         check_run_names(base)
     with located(path, "[grid]"):
         grid = _parse_grid(raw.get("grid"), base)
-    sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid)
+    sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid, defaults_keys=dotted_keys(defaults))
     check_plan_size(sweep.size, f"{path}: {sweep.size // seeds:,} grid points x {seeds:,} seeds", yes=yes)
     # Each value is valid alone; check every combination too (limits that tie two keys together).
     configs = []
@@ -305,14 +308,16 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
-    records, ran = run_resumable(plan, results_path, existing, resume_command=f"avsim sweep {sweep.path} --out {out}{recording_flags(rrd, mcap)} --resume",
+    setting = f" --setting {sweep.setting}" if sweep.setting != BASELINE else ""
+    records, ran = run_resumable(plan, results_path, existing,
+                                 resume_command=f"avsim sweep {sweep.path} --out {out}{setting}{recording_flags(rrd, mcap)} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
                                  address=address, decorate=lambda record: with_point(record, point_of[record["cell"]]),
                                  batch=batch)
     wall_s = time.perf_counter() - started
     options = [f"--workers {workers}" if workers is not None else "", f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "",
-               f"--address {address}" if address is not None else "", recording_flags(rrd, mcap).strip(),
+               f"--address {address}" if address is not None else "", setting.strip(), recording_flags(rrd, mcap).strip(),
                "--resume" if resume else ""]
     manifest = {
         "command": " ".join([f"avsim sweep {sweep.path} --out {out}", *filter(None, options)]),

@@ -1,6 +1,6 @@
-"""An experiment or leaderboard file under a render setting (`avsim reproduce --setting`, `avsim run
---setting`, `avsim leaderboard --setting`): the same configs as the file with the setting's keys in
-[defaults], and a refusal where the file sets one of them itself."""
+"""An experiment, sweep or leaderboard file under a render setting (`avsim reproduce`, `run`, `sweep` and
+`leaderboard`, each with `--setting`): the same configs as the file with the setting's keys in [defaults],
+and a refusal where the file sets one of them itself."""
 
 from __future__ import annotations
 
@@ -12,10 +12,11 @@ import pytest
 from avsim import cli
 from avsim.errors import ConfigError
 from avsim.experiments.leaderboard import load_leaderboard
-from avsim.experiments.render_setting import board_under_setting, under_setting
+from avsim.experiments.render_setting import board_under_setting, sweep_under_setting, under_setting
 from avsim.experiments.reproduce import reproduce
 from avsim.experiments.results_file import read_records
 from avsim.experiments.spec import load_experiment
+from avsim.experiments.sweep import load_sweep
 from avsim.realism.settings import SETTINGS
 
 FILE = """
@@ -193,3 +194,34 @@ def test_avsim_leaderboard_refuses_a_setting_its_file_sets_in_one_line_and_write
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "[defaults] sets scenario.foliage" in err
     assert not out.exists()
+
+
+# ---- a sweep under a setting ------------------------------------------------------------------------
+
+SWEEPS = Path(__file__).resolve().parents[2] / "experiments" / "sweeps"
+
+
+def test_a_sweep_under_a_setting_is_the_sweep_with_its_keys_in_defaults(tmp_path):
+    text = (SWEEPS / "sweep_smoke.toml").read_text()
+    by_hand_path = tmp_path / "by_hand.toml"
+    by_hand_path.write_text(text.replace('start_dist_m = 60 }', 'start_dist_m = 60, road_paint = "worn" }'))
+    under = sweep_under_setting(load_sweep(SWEEPS / "sweep_smoke.toml"), SETTINGS["worn_paint"])
+    assert [r.config for r in under.runs()] == [r.config for r in load_sweep(by_hand_path).runs()]
+    assert under.setting == "worn_paint" and "render setting worn_paint" in under.title
+
+
+def test_a_sweep_whose_grid_sets_a_key_of_the_setting_is_refused(tmp_path):
+    path = tmp_path / "grid.toml"
+    path.write_text((SWEEPS / "sweep_smoke.toml").read_text() + '"scenario.foliage" = ["solid", "clusters"]\n')
+    with pytest.raises(ConfigError, match=r"\[grid\] sets scenario.foliage, which --setting clusters sets too"):
+        sweep_under_setting(load_sweep(path), SETTINGS["clusters"])
+
+
+def test_avsim_sweep_under_a_setting_runs_it_and_says_so(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(SWEEPS / "sweep_smoke.toml"), "--out", str(out), "--workers", "1", "--no-progress",
+                     "--rrd", "none", "--setting", "worn_paint"]) == 0
+    records = read_records(out / "results.jsonl")
+    assert len(records) == 4 and all(r["result"]["config"]["scenario"]["road_paint"] == "worn" for r in records)
+    assert "--setting worn_paint" in json.loads((out / "manifest.json").read_text())["command"]
+    capsys.readouterr()
