@@ -24,7 +24,7 @@ from avsim.config import with_overrides
 from avsim.experiments.batch import run_batch
 from avsim.experiments.reproduce import EXPERIMENTS_DIR, load_study, specs_for
 from avsim.experiments.run_task import RunSpec
-from avsim.realism.settings import SETTINGS
+from avsim.realism.settings import BASELINE, SETTINGS
 from avsim.stats import rate_with_interval
 
 
@@ -47,12 +47,13 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     common = parse_set(args.set)
-    setting = SETTINGS[args.setting].config_overrides()
-    specs = list(specs_for(load_study([EXPERIMENTS_DIR / f"{name}.toml" for name in args.experiments])))
+    paths = [EXPERIMENTS_DIR / f"{name}.toml" for name in args.experiments]
+    specs = list(specs_for(load_study(paths)))
     results = {}
-    for label, overrides in (("default", {}), (args.setting, setting)):
+    for label, setting in (("default", BASELINE), (args.setting, args.setting)):
         start = time.monotonic()
-        runs = [dataclasses.replace(s, config=with_overrides(with_overrides(s.config, common), overrides)) for s in specs]
+        # the setting as `avsim reproduce --setting` applies it, --set on top of both
+        runs = [dataclasses.replace(s, config=with_overrides(s.config, common)) for s in specs_for(load_study(paths, setting=setting))]
         records = run_batch(runs, workers=args.workers, description=label)
         results[label] = {(r["experiment"], r["cell"], r["seed"]): r["result"] for r in records if r["status"] == "ok"}
         print(f"{label}: {len(records)} runs in {(time.monotonic() - start) / 60:.1f} min")
