@@ -13,6 +13,8 @@ would render textured), so the user must choose.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
+from pathlib import Path
 
 from avsim.config import with_overrides
 from avsim.config_owners import dotted_keys
@@ -66,7 +68,8 @@ def sweep_under_setting(sweep: Sweep, setting: RenderSetting) -> Sweep:
                                setting)
 
 
-def _base_under_setting(plan_file, layers, setting: RenderSetting):
+def _base_under_setting(plan_file: Leaderboard | Sweep, layers: list[tuple[str, Iterable[str]]],
+                        setting: RenderSetting) -> Leaderboard | Sweep:
     """A leaderboard or sweep (`path`, `title`, `base`, `setting`) with `setting`'s overrides in its base
     config, after refusing any of `layers` ((where, dotted keys it sets)) that sets one of them."""
     overrides = setting.config_overrides()
@@ -82,7 +85,7 @@ def _base_under_setting(plan_file, layers, setting: RenderSetting):
                                title=f"{plan_file.title} (render setting {setting.name}: {setting.describe()})")
 
 
-def _refuse_clash(path, where: str, keys_set, setting: RenderSetting) -> None:
+def _refuse_clash(path: Path, where: str, keys_set: Iterable[str], setting: RenderSetting) -> None:
     """A one-line ConfigError where `where` in the file at `path` sets one of `setting`'s keys."""
     clash = dotted_keys(setting.config_overrides()) & frozenset(keys_set)
     if clash:
