@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from avsim.config import SimConfig, with_overrides
 from avsim.metrics import RunResult
+from avsim.perception.factory import perception_keys
 from avsim.perception.cpu_bf16 import detector_arithmetic
 
 # What each outcome adds after its own word, the JSON's `outcome` (one entry per ALL_OUTCOMES).
@@ -35,10 +37,11 @@ def _dist(value: float | None, what: str) -> str:
 
 def _perception(perception: dict) -> str:
     """The perception's kind, with the arithmetic the own detector ran in where it runs, e.g. "detector (bf16)"."""
-    kind = perception["kind"]
-    if kind == "detector" or (kind == "ensemble" and "detector" in perception["ensemble_members"]):
-        return f"{kind} ({detector_arithmetic(perception['detector_precision'])})"
-    return kind
+    # The own detector runs exactly where its precision key is read (an ensemble with it among its members too).
+    config = with_overrides(SimConfig(), {"perception": perception}).perception
+    if "detector_precision" in perception_keys(config):
+        return f"{config.kind} ({detector_arithmetic(config.detector_precision)})"
+    return config.kind
 
 
 def format_summary(result: RunResult, wall_s: float) -> str:
