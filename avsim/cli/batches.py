@@ -7,11 +7,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG
+from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG, add_setting_flag
 from avsim.errors import ConfigError
 from avsim.cli.recording_modes import add_recording_modes
 from avsim.outputs import FOLDER, add_input_argument, add_output_argument
-from avsim.realism.settings import BASELINE, SETTINGS
+from avsim.realism.settings import SETTINGS
 from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 
@@ -70,14 +70,6 @@ def _add_pool_flags(parser: argparse.ArgumentParser, workers_help: str, backend_
     parser.add_argument("--address", help="Ray cluster to run on, e.g. auto or HOST:6379 (with --backend ray)")
 
 
-def _add_setting_flag(parser: argparse.ArgumentParser, what: str, refused: str) -> None:
-    """--setting NAME: one of `avsim realism`'s render settings under `what` (`avsim.experiments.render_setting`)."""
-    parser.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
-                        help=f"render {what} under one of `avsim realism`'s settings, as if its keys stood in the file's "
-                             f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; "
-                             f"docs/realism.md); {refused}")
-
-
 def add_commands(sub) -> None:
     """Add `avsim reproduce`, `avsim sweep` and `avsim leaderboard` to the subcommands `sub`."""
     rep = sub.add_parser("reproduce", help="run the study's tables and figures; writes results/<timestamp>/ with report.md")
@@ -98,7 +90,7 @@ def add_commands(sub) -> None:
                              "the rest with the same selection flags, then write the report")
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
-    _add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
+    add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     add_recording_modes(rep)
@@ -114,7 +106,7 @@ def add_commands(sub) -> None:
                     "cluster or the one at --address (pip install 'avsim[ray]')")
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
-    _add_setting_flag(swp, "every run of the grid", "a file whose [defaults] or [grid] sets one of its keys is refused")
+    add_setting_flag(swp, "every run of the grid", "a file whose [defaults] or [grid] sets one of its keys is refused")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
     swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
     add_recording_modes(swp)
@@ -129,7 +121,7 @@ def add_commands(sub) -> None:
                     BACKEND_HELP)
     board.add_argument("--yes", action="store_true", help="run more than 10,000 runs (refused without it)")
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
-    _add_setting_flag(board, "every run of the board", "a file that sets one of its keys (in [defaults], [vary], a defence, "
+    add_setting_flag(board, "every run of the board", "a file that sets one of its keys (in [defaults], [vary], a defence, "
                                                        "a condition or an availability scenario) is refused")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_recording_modes(board)

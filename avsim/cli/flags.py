@@ -14,7 +14,7 @@ from avsim.config import LoopConfig, ScenarioConfig
 from avsim.config_owners import dotted_keys
 from avsim.errors import ConfigError
 from avsim.outputs import add_input_argument
-from avsim.realism.settings import RenderSetting
+from avsim.realism.settings import BASELINE, SETTINGS, RenderSetting
 from avsim.validation import config_flag, number_flag
 
 SEED_FLAG = config_flag(ScenarioConfig, "seed")
@@ -73,3 +73,12 @@ def refuse_setting_clash(setting: RenderSetting | None, overrides: dict[str, Any
     if clash:
         raise ConfigError(f"{', '.join(sorted(clash))} is set by --setting {setting.name} and again by the flags; "
                           "leave out one of them")
+
+
+def add_setting_flag(parser: argparse.ArgumentParser, what: str, refused: str) -> None:
+    """--setting NAME: one of `avsim realism`'s render settings under `what` (`avsim.experiments.render_setting`);
+    `refused` says which of the user's own keys it may not meet."""
+    parser.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
+                        help=f"render {what} under one of `avsim realism`'s settings, as if its keys stood in the file's "
+                             f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; "
+                             f"docs/realism.md); {refused}")

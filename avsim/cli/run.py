@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from avsim.cli.flags import add_scenario_flags, config_from_args, flag_overrides, refuse_setting_clash
+from avsim.cli.flags import add_scenario_flags, add_setting_flag, config_from_args, flag_overrides, refuse_setting_clash
 from avsim.errors import ConfigError
 from avsim.outputs import FILE, add_input_argument, add_output_argument
 from avsim.realism.settings import BASELINE, SETTINGS
@@ -102,8 +102,6 @@ def add_commands(sub) -> None:
     add_input_argument(run, "--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
                                       "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")
     run.add_argument("--cell", help="name of the cell to run from --config (default: the first cell of an experiment file)")
-    run.add_argument("--setting", choices=tuple(SETTINGS), default=BASELINE, metavar="NAME",
-                     help="render under one of `avsim realism`'s settings (docs/realism.md), under the flags and the "
-                          "experiment file's cell, as `avsim reproduce --setting` runs it; a key it sets may not be set "
-                          f"again by --set or the file (default {BASELINE}, the default renders)")
+    add_setting_flag(run, "the run (the flags' scenario or the file's cell, as `avsim reproduce --setting` runs it)",
+                     "a key it sets may not be set again by --set or the file")
     run.set_defaults(func=_cmd_run)

@@ -59,9 +59,9 @@ from avsim.errors import ConfigError
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import MAX_RUNS, check_plan_size
 from avsim.experiments.run_task import RunSpec
-from avsim.realism.settings import BASELINE
 from avsim.experiments.spec import (as_table, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
+from avsim.realism.settings import BASELINE
 
 TOP_LEVEL_KEYS = ("title", "defaults", "vary", "conditions", "defences", "places", "availability")
 CONDITIONS = ("clean", "strongest", "adaptive")  # "adaptive" is each defence's own

@@ -19,12 +19,12 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
 from avsim.software import software_versions
 from avsim.experiments.leaderboard import Leaderboard
-from avsim.realism.settings import BASELINE
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.metrics import write_json_atomic
+from avsim.realism.settings import BASELINE
 
 
 def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
