@@ -178,10 +178,12 @@ def srgb_decode(encoded: np.ndarray) -> np.ndarray:
     return np.where(encoded <= 0.04045, encoded / 12.92, ((encoded + 0.055) / 1.055) ** 2.4)
 
 
-def upper_hemisphere_mean_luminance(rgb_linear: np.ndarray, texels: int) -> float:
+def upper_hemisphere_mean_luminance(rgb_linear: np.ndarray, texels: int, directions: np.ndarray | None = None) -> float:
     """Solid-angle weighted mean luminance over the directions above the horizon of a skybox's
-    (6 * texels, texels, 3) linear RGB."""
-    weights = cube_solid_angles(texels) * (cube_directions(texels)[..., 2] > 0)
+    (6 * texels, texels, 3) linear RGB; directions: its `cube_directions(texels)`, where the caller has them."""
+    if directions is None:
+        directions = cube_directions(texels)
+    weights = cube_solid_angles(texels) * (directions[..., 2] > 0)
     return float((rgb_linear @ _LUMINANCE_WEIGHTS * weights).sum() / weights.sum())
 
 
@@ -189,9 +191,10 @@ def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIG
     """(6 * texels, texels, 3) uint8 sRGB skybox of the clear sky for the sun in direction `sun` ((3,)
     unit, world frame), scaled to the gradient sky's mean luminance over the upper hemisphere times
     2 ** `exposure_ev` [stops]."""
-    x, _, luminance = preetham_xyY(cube_directions(texels), sun, turbidity)
+    directions = cube_directions(texels)
+    x, _, luminance = preetham_xyY(directions, sun, turbidity)
     rgb = linear_srgb(x, on_daylight_locus(x), luminance)
     # A saturated blue can fall just outside sRGB's gamut; clip it to the gamut before scaling.
     rgb = np.maximum(rgb, 0.0)
-    rgb *= 2.0 ** exposure_ev * GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels)
+    rgb *= 2.0 ** exposure_ev * GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels, directions)
     return np.rint(srgb_encode(rgb) * 255).astype(np.uint8)
