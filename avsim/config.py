@@ -103,7 +103,7 @@ class ScenarioConfig:
     start_speed_kmh: float = ranged(0.0, 0, 200, unit="km/h")  # the study starts from rest and accelerates
     # Front bumper to stop line at t = 0 [m]; the approach road is 300 m long.
     start_dist_m: float = ranged(230.0, 20, 300, unit="m", note="the approach road is 300 m")
-    seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")  # seeds the start jitter and the sensor noise
+    seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")  # seeds the start jitter, the sensor noise and the clouds
     # Seeds the town's scenery (building heights, trees, parked cars); fixed per study town.
     layout_seed: int = ranged(0, 0, MAX_SEED, note="2**32 - 1")
     # Seeded jitter of the start position [m]; varies runs of one scenario across seeds.
@@ -146,6 +146,10 @@ class ScenarioConfig:
     # gradient's mean luminance; +1 doubles the sky's light (more of it clips to white), -1 halves it. The
     # classic renderer has no exposure, so this level is a choice (docs/realism.md measures what it decides).
     sky_exposure_ev: float = ranged(0.0, -3, 3, unit="EV")
+    # Fair-weather cumulus over the daylight sky, in oktas (eighths of the sky covered, as weather observers
+    # report cover): 0 a clear sky (the default), 3-4 scattered, 5-6 broken. Not 7-8: the scene's sun always
+    # shines, which a sky that closed would not let it. A fresh field for each scenario.seed (world/clouds.py).
+    cloud_oktas: int = ranged(0, 0, 6, unit="oktas", note="7-8 would hide the sun, which the lighting does not model")
     # Lane lines, stop line and crosswalk: "fresh", solid paint (the default renders); "worn", paint
     # abraded off the aggregate and flaked, showing the asphalt through it (world/surface_textures.py).
     road_paint: str = "fresh"
@@ -157,6 +161,8 @@ class ScenarioConfig:
                  f"scenario.sign_materials must be one of {', '.join(SIGN_MATERIALS)}, got {self.sign_materials!r}")
         _require(self.foliage in FOLIAGES, f"scenario.foliage must be one of {', '.join(FOLIAGES)}, got {self.foliage!r}")
         _require(self.sky in SKIES, f"scenario.sky must be one of {', '.join(SKIES)}, got {self.sky!r}")
+        _require(self.cloud_oktas == 0 or self.sky == "daylight",
+                 f"scenario.cloud_oktas = {self.cloud_oktas} needs scenario.sky = \"daylight\" (the gradient sky has no clouds); set both")
         _require(self.road_paint in ROAD_PAINTS, f"scenario.road_paint must be one of {', '.join(ROAD_PAINTS)}, got {self.road_paint!r}")
         _require(type(self.sun_shadow_map_px) is int and self.sun_shadow_map_px in SHADOW_MAP_SIZES_PX,
                  f"scenario.sun_shadow_map_px must be one of {', '.join(map(str, SHADOW_MAP_SIZES_PX))} (0: no shadows), "

@@ -148,9 +148,11 @@ DAYLIGHT_SKY = Condition(
     _daylight_sky_unmet, "set scenario.sky = daylight, in a run that draws colour images")
 SEEDED = Condition(
     lambda config, sight: config.scenario.start_jitter_m > 0 or (
-        sight.perceives and sight.kind in FRAME_DETECTORS and config.perception.sensor_noise_std > 0),
-    "the start jitter (scenario.start_jitter_m > 0) and a pixel perception's sensor noise (perception.sensor_noise_std > 0)",
-    lambda config, sight: "scenario.start_jitter_m is 0 and it draws no sensor noise",
+        sight.perceives and sight.kind in FRAME_DETECTORS and config.perception.sensor_noise_std > 0) or (
+        sight.colour and config.scenario.sky == "daylight" and config.scenario.cloud_oktas > 0),
+    "the start jitter (scenario.start_jitter_m > 0), a pixel perception's sensor noise (perception.sensor_noise_std > 0) "
+    "and the clouds of a daylight sky drawn in colour (scenario.cloud_oktas > 0)",
+    lambda config, sight: "scenario.start_jitter_m is 0, it draws no sensor noise and no clouds",
     "set scenario.start_jitter_m or a pixel perception's perception.sensor_noise_std above 0")
 SIGN_TEXTURE = Condition(
     lambda config, sight: sight.colour or config.scenario.sign == NO_SIGN,
@@ -176,6 +178,7 @@ RUN_CONDITIONS: dict[str, Condition] = {
                      "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint", "scenario.sky_exposure_ev"), COLOUR),
     "scenario.fog_start_m": FOG_START,
     "scenario.sky_turbidity": DAYLIGHT_SKY,
+    "scenario.cloud_oktas": DAYLIGHT_SKY,
     # A texture over another (alpha dropped, the same square face) changes only colour pixels; over
     # `none` it puts a stop sign where there was none, read by every run: `avsim run --config`
     # leaves scenario.sign out of its check where the cell has none (`avsim.cli.run`).

@@ -37,7 +37,7 @@ ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scena
 
 def test_every_conditional_key_is_in_one_group_here():
     grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
-               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity"]
+               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity", "scenario.cloud_oktas"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -54,6 +54,7 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
                  "scenario.sign": (sees and kind in PIXEL) or recorded,  # a texture (the default clean one)
                  "scenario.fog_start_m": False,  # no fog by default
                  "scenario.sky_turbidity": False,  # the gradient sky by default
+                 "scenario.cloud_oktas": False,
                  "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,
@@ -90,11 +91,16 @@ def test_conditions_on_other_keys_fog_seed_and_slip_control():
         check_read(SimConfig(), {"scenario.sky_turbidity"}, recorded=False)
     check_read(with_overrides(SimConfig(), {"scenario": {"sky": "daylight"}}), {"scenario.sky_turbidity"}, recorded=False)
     no_jitter = with_overrides(SimConfig(), {"scenario": {"start_jitter_m": 0.0}})
-    with pytest.raises(ConfigError, match=r"scenario\.seed .* this run's scenario\.start_jitter_m is 0 and it draws no sensor noise"):
+    with pytest.raises(ConfigError, match=r"scenario\.seed .* this run's scenario\.start_jitter_m is 0, it draws no sensor noise and no clouds"):
         check_read(no_jitter, {"scenario.seed"})
     check_read(with_overrides(no_jitter, {"perception": {"sensor_noise_std": 2.0}}), {"scenario.seed"})
     with pytest.raises(ConfigError, match=r"scenario\.seed"):  # the oracle draws no noise
         check_read(with_overrides(no_jitter, {"perception": {"kind": "oracle"}}), {"scenario.seed"})
+    # Clouds are drawn from the seed; the noise-free own detector then reads it through them alone.
+    cloudy = with_overrides(no_jitter, {"perception": {"sensor_noise_std": 0.0}, "scenario": {"sky": "daylight", "cloud_oktas": 4}})
+    check_read(cloudy, {"scenario.seed", "scenario.cloud_oktas"})
+    with pytest.raises(ConfigError, match=r"scenario\.seed .* no clouds"):
+        check_read(with_overrides(cloudy, {"scenario": {"cloud_oktas": 0}}), {"scenario.seed"})
 
 
 def test_no_stop_sign_is_read_by_every_run_and_a_texture_only_where_colour_is_drawn(tmp_path, capsys):

@@ -98,7 +98,8 @@ def scene_draws(towns: tuple[str, ...], draws_per_town: int, seed: int) -> list[
 def scene_config(scene: SceneDraw, setting: RenderSetting) -> SimConfig:
     """The `SimConfig` that renders `scene` (its town, placement, clean sign and sun) under the
     render `setting`'s overrides (camera, scenario materials, ...)."""
-    scenario = {"town": scene.town, "placement": scene.placement, "sign": "clean",
+    # The scene's seed draws its clouds, where the setting has them; nothing else in a scene reads it.
+    scenario = {"town": scene.town, "placement": scene.placement, "sign": "clean", "seed": scene.seed,
                 "sun_elevation_deg": scene.sun_elevation_deg, "sun_azimuth_deg": scene.sun_azimuth_deg,
                 "sun_intensity": scene.sun_intensity}
     overrides = setting.config_overrides()

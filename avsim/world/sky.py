@@ -8,7 +8,8 @@ Preetham, Shirley and Smits' analytic model of the clear sky (A Practical Analyt
 Daylight, SIGGRAPH 1999): Perez et al.'s five-parameter distribution for the luminance Y and for
 the CIE chromaticities x and y, with coefficients linear in the atmosphere's turbidity (their
 Table 2), and the zenith values as functions of turbidity and the sun's zenith angle (their
-Appendix A.2). The sun's disc itself is not drawn.
+Appendix A.2). The sun's disc itself is not drawn. `scenario.cloud_oktas` lays fair-weather cumulus
+over it (`avsim.world.clouds`).
 
 One correction: near the horizon the model's chromaticity y falls below the CIE daylight locus
 (by 0.015 at 2 degrees up, turbidity 3), which gives the horizon a magenta cast that real skies do
@@ -38,6 +39,7 @@ import mujoco
 import numpy as np
 
 from avsim.config import SKIES, ScenarioConfig
+from avsim.world.clouds import CLOUD_TEXELS, cloud_rng, cloudy_sky_linear
 from avsim.world.signs import set_texture_data
 
 SKY_TEXTURE_NAME = "sky"
@@ -86,7 +88,12 @@ def add_sky(spec: mujoco.MjSpec, scenario: ScenarioConfig) -> None:
         raise ValueError(f"unknown sky {scenario.sky!r}; one of {', '.join(SKIES)}")
     sun = sun_direction(scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
     texture = spec.add_texture(name=SKY_TEXTURE_NAME, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX)
-    set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, exposure_ev=scenario.sky_exposure_ev))
+    if scenario.cloud_oktas == 0:
+        set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, exposure_ev=scenario.sky_exposure_ev))
+        return
+    clouds = (scenario.cloud_oktas, cloud_rng(scenario.seed, scenario.layout_seed))
+    set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, texels=CLOUD_TEXELS,
+                                                   exposure_ev=scenario.sky_exposure_ev, clouds=clouds))
 
 
 def exposed_rgb(rgb: tuple[float, float, float], exposure_ev: float) -> list[float]:
@@ -187,14 +194,21 @@ def upper_hemisphere_mean_luminance(rgb_linear: np.ndarray, texels: int, directi
     return float((rgb_linear @ _LUMINANCE_WEIGHTS * weights).sum() / weights.sum())
 
 
-def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIGHT_TEXELS, exposure_ev: float = 0.0) -> np.ndarray:
+def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIGHT_TEXELS, exposure_ev: float = 0.0,
+                         clouds: tuple[int, np.random.Generator] | None = None) -> np.ndarray:
     """(6 * texels, texels, 3) uint8 sRGB skybox of the clear sky for the sun in direction `sun` ((3,)
     unit, world frame), scaled to the gradient sky's mean luminance over the upper hemisphere times
-    2 ** `exposure_ev` [stops]."""
+    2 ** `exposure_ev` [stops]. clouds: (oktas, random stream) of the cumulus drawn over it
+    (`avsim.world.clouds`), lit in the clear sky's unit and scaled by the clear sky's factor, so that
+    the clear patches between them are the clear sky's own."""
     directions = cube_directions(texels)
     x, _, luminance = preetham_xyY(directions, sun, turbidity)
     rgb = linear_srgb(x, on_daylight_locus(x), luminance)
     # A saturated blue can fall just outside sRGB's gamut; clip it to the gamut before scaling.
     rgb = np.maximum(rgb, 0.0)
-    rgb *= 2.0 ** exposure_ev * GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels, directions)
+    scale = 2.0 ** exposure_ev * GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels, directions)
+    if clouds is not None:
+        oktas, rng = clouds
+        rgb = cloudy_sky_linear(rgb, directions, cube_solid_angles(texels), math.asin(float(np.clip(sun[2], -1.0, 1.0))), oktas, rng)
+    rgb *= scale
     return np.rint(srgb_encode(rgb) * 255).astype(np.uint8)

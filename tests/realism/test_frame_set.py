@@ -38,6 +38,11 @@ def test_a_setting_changes_the_camera_and_nothing_of_the_scene():
     assert baseline.scenario.town == "town03" and baseline.scenario.sign == "clean"
 
 
+def test_each_scene_draw_has_clouds_of_its_own():
+    first, second = (scene_config(draw, SETTINGS["scattered_clouds"]) for draw in scene_draws(("town07",), 2, seed=0))
+    assert first.scenario.cloud_oktas == 4 and first.scenario.seed != second.scenario.seed
+
+
 def test_the_bins_run_from_10_m_to_the_farthest_asked_for():
     assert BIN_EDGES_M == bin_edges_m() == (10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 60)
     assert bin_edges_m(100)[:len(BIN_EDGES_M)] == BIN_EDGES_M and bin_edges_m(100)[-1] == 100

@@ -1,0 +1,111 @@
+"""Clouds over the daylight sky: the cover is the oktas asked for, the clear patches are the clear sky's
+own, the light follows the two-stream physics, the contrast fades with distance, and the field is seeded."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from avsim.config import ScenarioConfig, SimConfig, with_overrides
+from avsim.errors import ConfigError
+from avsim.world import clouds, sky
+from avsim.world.scene import build_scene
+
+TEXELS = 64  # small faces keep these tests fast; the cover and the physics do not depend on the size
+SUN = sky.sun_direction(50.0, 30.0)
+
+
+def _optical_depth(oktas: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(tau, solid-angle weights above the horizon) of the texels of a TEXELS skybox, as the sky draws them."""
+    directions = sky.cube_directions(TEXELS)
+    x_m, y_m, _ = clouds.layer_points_m(directions)
+    solid_angles = sky.cube_solid_angles(TEXELS)
+    noise = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(seed, 0), clouds.texel_footprint_m(directions, solid_angles))
+    weights = solid_angles * (directions[..., 2] > 0)
+    threshold = clouds.cover_threshold(noise, weights, oktas)
+    return clouds.optical_depth(noise, threshold, float(noise[weights > 0].std())) * (weights > 0), weights
+
+
+def _cloudy(oktas: int, seed: int = 0) -> np.ndarray:
+    return sky.daylight_sky_texture(SUN, 3.0, TEXELS, clouds=(oktas, clouds.cloud_rng(seed, 0)))
+
+
+@pytest.mark.parametrize("oktas", [1, 4, 6])
+def test_the_clouds_cover_the_sky_dome_in_the_oktas_asked_for(oktas):
+    tau, weights = _optical_depth(oktas)
+    covered = weights[tau > 0].sum() / weights.sum()
+    assert covered == pytest.approx(oktas / 8, abs=0.01)
+
+
+def test_the_clear_patches_are_the_clear_skys_own_texels():
+    tau, _ = _optical_depth(4)
+    clear = sky.daylight_sky_texture(SUN, 3.0, TEXELS)
+    cloudy = _cloudy(4)
+    between = tau == 0
+    assert np.array_equal(cloudy[between], clear[between])
+    assert not np.array_equal(cloudy[~between], clear[~between])
+
+
+def test_a_cloud_base_is_bright_at_its_thin_edge_and_grey_where_thick():
+    tau = np.array([0.0, 2.0, 30.0])
+    luminance = clouds.base_luminance_kcd(tau, math.radians(90.0))
+    # Nothing scatters where there is no cloud; the two-stream transmittance at tau = 30 with g = 0.85.
+    assert luminance[0] == 0.0
+    assert luminance[2] == pytest.approx((1 / (1 + 0.75 * 0.15 * 30) - math.exp(-30)) * 100_000 / math.pi / 1000)
+    assert luminance[1] > 2 * luminance[2]
+    # A lower sun lights the layer less (the sine of its elevation).
+    assert clouds.base_luminance_kcd(tau, math.radians(30.0))[2] == pytest.approx(luminance[2] / 2)
+
+
+def test_clouds_fade_into_the_horizon_haze():
+    directions = sky.cube_directions(TEXELS)
+    clear = sky.daylight_sky_texture(SUN, 3.0, TEXELS).astype(float)
+    change = np.abs(_cloudy(6).astype(float) - clear).sum(axis=-1)
+    elevation = np.degrees(np.arcsin(directions[..., 2]))
+    assert change[(elevation > 0) & (elevation < 3)].mean() < 0.2 * change[elevation > 30].mean()
+    assert change[elevation < 0].max() == 0  # the ground hides what is below the horizon
+
+
+def test_octaves_finer_than_a_texel_fade_out_towards_the_horizon():
+    # One texel straight up spans about 1.5 km / 64 texels; near the horizon the layer recedes and stretches.
+    directions = np.array([[0.0, 0.0, 1.0], [0.9986, 0.0, 0.0523]])  # up, and 3 deg above the horizon
+    footprint = clouds.texel_footprint_m(directions, np.full(2, (math.pi / 2 / TEXELS) ** 2))
+    assert footprint[0] == pytest.approx(clouds.CLOUD_BASE_M * math.pi / 2 / TEXELS)
+    assert footprint[1] > 300 * footprint[0]
+    x_m, y_m = np.array([[0.0, 500.0]]), np.array([[0.0, 0.0]])
+    # Where a texel spans kilometres only the first octave is left: the same as a field of that octave alone.
+    coarse = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(0, 0), np.full((1, 2), 1e9))
+    sharp = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(0, 0))
+    assert not np.array_equal(coarse, sharp)
+    first_octave_only = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(0, 0), np.full((1, 2), clouds.CLOUD_WAVELENGTH_M / 2))
+    assert np.array_equal(coarse, first_octave_only)
+
+
+def test_the_field_is_the_seeds_own():
+    assert np.array_equal(_cloudy(4, seed=3), _cloudy(4, seed=3))
+    assert not np.array_equal(_cloudy(4, seed=3), _cloudy(4, seed=4))
+
+
+def test_the_scene_draws_clouds_only_when_asked():
+    def sky_of(**scenario) -> np.ndarray:
+        spec = mujoco.MjSpec()
+        sky.add_sky(spec, ScenarioConfig(**scenario))
+        model = spec.compile()
+        tex = model.texture(sky.SKY_TEXTURE_NAME).id
+        return model.tex_data[model.tex_adr[tex]:model.tex_adr[tex] + 3 * model.tex_width[tex] * model.tex_height[tex]]
+
+    assert len(sky_of(sky="daylight")) == 3 * 6 * sky.DAYLIGHT_TEXELS ** 2  # a clear daylight sky as before
+    cloudy = sky_of(sky="daylight", cloud_oktas=4)
+    assert len(cloudy) == 3 * 6 * clouds.CLOUD_TEXELS ** 2
+    assert not np.array_equal(cloudy, sky_of(sky="daylight", cloud_oktas=4, seed=1))
+    model, _ = build_scene(with_overrides(SimConfig(), {"scenario": {"town": "town07", "sky": "daylight", "cloud_oktas": 2}}))
+    assert model.tex_width[model.texture(sky.SKY_TEXTURE_NAME).id] == clouds.CLOUD_TEXELS
+
+
+def test_clouds_need_the_daylight_sky_and_leave_the_sun_shining():
+    assert ScenarioConfig().cloud_oktas == 0
+    with pytest.raises(ConfigError, match='scenario.cloud_oktas = 4 needs scenario.sky = "daylight"'):
+        ScenarioConfig(cloud_oktas=4)
+    with pytest.raises(ConfigError, match="scenario.cloud_oktas"):
+        ScenarioConfig(sky="daylight", cloud_oktas=7)
