@@ -88,11 +88,8 @@ def add_sky(spec: mujoco.MjSpec, scenario: ScenarioConfig) -> None:
         raise ValueError(f"unknown sky {scenario.sky!r}; one of {', '.join(SKIES)}")
     sun = sun_direction(scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
     texture = spec.add_texture(name=SKY_TEXTURE_NAME, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX)
-    if scenario.cloud_oktas == 0:
-        set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, exposure_ev=scenario.sky_exposure_ev))
-        return
-    clouds = (scenario.cloud_oktas, cloud_rng(scenario.seed, scenario.layout_seed))
-    set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, texels=CLOUD_TEXELS,
+    clouds = (scenario.cloud_oktas, cloud_rng(scenario.seed, scenario.layout_seed)) if scenario.cloud_oktas else None
+    set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, texels=CLOUD_TEXELS if clouds else DAYLIGHT_TEXELS,
                                                    exposure_ev=scenario.sky_exposure_ev, clouds=clouds))
 
 
