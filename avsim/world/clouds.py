@@ -64,16 +64,15 @@ def cloud_rng(seed: int, layout_seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, layout_seed, zlib.crc32(b"clouds")])
 
 
-def layer_points_m(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def layer_points_m(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where each direction ((..., 3) unit, world frame) meets the cloud layer: the (...) horizontal x
     and y [m] relative to the camera, and the slant range r [m]; directions at or below the horizon get
     r = inf (they never meet it) and x = y = 0."""
-    up = directions[..., 2]
-    above = up > 0
-    range_m = np.where(above, CLOUD_BASE_M / np.where(above, up, 1.0), np.inf)
-    x_m = np.where(above, directions[..., 0] * np.where(above, range_m, 0.0), 0.0)
-    y_m = np.where(above, directions[..., 1] * np.where(above, range_m, 0.0), 0.0)
-    return x_m, y_m, range_m
+    above = directions[..., 2] > 0
+    met_range_m = CLOUD_BASE_M / np.where(above, directions[..., 2], 1.0)  # a placeholder range below the horizon
+    x_m = np.where(above, directions[..., 0] * met_range_m, 0.0)
+    y_m = np.where(above, directions[..., 1] * met_range_m, 0.0)
+    return x_m, y_m, np.where(above, met_range_m, np.inf)
 
 
 def cloud_noise(x_m: np.ndarray, y_m: np.ndarray, rng: np.random.Generator, footprint_m: np.ndarray | None = None) -> np.ndarray:
@@ -92,7 +91,7 @@ def cloud_noise(x_m: np.ndarray, y_m: np.ndarray, rng: np.random.Generator, foot
         wavelength_m = CLOUD_WAVELENGTH_M / 2 ** octave
         u = np.mod((x_m + shift_m[0]) / wavelength_m, _LATTICE).astype(np.float32)
         v = np.mod((y_m + shift_m[1]) / wavelength_m, _LATTICE).astype(np.float32)
-        # remap samples at most 32767 rows at a time, so the maps keep the texture's 2-D shape.
+        # remap refuses maps of 32767 rows or more, so they keep the texture's 2-D shape rather than one column.
         sampled = cv2.remap(lattice, u.reshape(-1, u.shape[-1]), v.reshape(-1, v.shape[-1]), cv2.INTER_CUBIC,
                             borderMode=cv2.BORDER_WRAP)
         weight = 1.0 if footprint_m is None or octave == 0 else np.clip(wavelength_m / (2 * footprint_m) - 1, 0.0, 1.0)
