@@ -43,8 +43,8 @@ quick: $(VENV)/.installed
 # docs/performance.md has the times.
 TEST_WORKERS ?= 2
 test: $(VENV)/.installed
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
-	$(PY) -m pytest -q -m 'slow and not regen and not both_cores' -n $(TEST_WORKERS) --dist loadfile --durations=20
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(PY) -m pytest -q -m 'slow and not regen and not both_cores' -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=20
 	$(PY) -m pytest -q -m 'slow and not regen and both_cores' --durations=5
 
 # Every shipped texture made again from its record (about an hour here); `make test` covers one per code path.

@@ -1,7 +1,7 @@
 """Renders the reference tests run both sides on: 3 towns x 7 views, both cameras, 6-40 m.
 
-Shared by the COCO CenterNet's TF.js reference and the YOLO reader's OpenCV reference, so
-both ports are checked on the same pixels.
+Shared by the COCO CenterNet's TF.js reference, the NanoDet interpreter's and the YOLO reader's
+OpenCV reference, so the ports are checked on the same pixels (the COCO one on seven of them).
 """
 
 from __future__ import annotations
@@ -23,6 +23,13 @@ VIEWS = (
     ("far", "side", 14.0, 0.0, 0.0),
     ("near", "side", 18.0, -0.5, -4.0),
 )
+
+
+def one_of_each_view(frames: list[tuple[str, np.ndarray]]) -> list[tuple[str, np.ndarray]]:
+    """Seven of render_views' frames, each view once: a town's k-th frame from the k-th town in turn."""
+    towns = TOWNS.names()
+    assert len(frames) == len(towns) * len(VIEWS)
+    return [frames[(k % len(towns)) * len(VIEWS) + k] for k in range(len(VIEWS))]
 
 
 def render_views() -> list[tuple[str, np.ndarray]]:
