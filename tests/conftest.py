@@ -13,6 +13,7 @@ import pytest  # noqa: E402
 
 from avsim.runner import run_config  # noqa: E402
 from avsim.metrics import RunResult  # noqa: E402
+from file_order import longest_files_first  # noqa: E402
 from helpers import make_config  # noqa: E402
 
 
@@ -44,39 +45,10 @@ def one_local_ray_cluster_at_a_time(tmp_path_factory):
         yield
 
 
-# ---- The longest files first, for `--dist loadfile` -----------------------------------------------
-# pytest-xdist's loadfile hands each process whole files, by default in order of their test count. That put
-# the slow pass's one-test files (the TF.js reference, about 220 s) last, and one process sat idle for minutes
-# at the end. `make test` passes --no-loadscope-reorder, so the files go out in the order below: the longest
-# first (longest-processing-time-first scheduling), then every other file as collected. The seconds are each
-# file's test time in the default and slow passes together (`--cpu-durations=0` wall column, quiet 2-core
-# machine, 2026-11-27); they decide only the order, never what runs.
-LONGEST_FILES_S = {
-    "tests/perception/detector/test_perception.py": 525,
-    "tests/test_lockstep.py": 263,
-    "tests/test_loop.py": 255,
-    "tests/perception/coco/test_coco_reference.py": 224,
-    "tests/control/test_defences_in_the_loop.py": 170,
-    "tests/cli/test_cli_signals.py": 141,
-    "tests/experiments/test_sweep_backends.py": 83,
-    "tests/control/test_policies_in_the_loop.py": 71,
-    "tests/experiments/attacks/test_texture_eval.py": 52,
-    "tests/test_validation.py": 52,
-    "tests/experiments/test_leaderboard.py": 50,
-    "tests/test_termination.py": 49,
-    "tests/attacks/test_driveby.py": 48,
-    "tests/experiments/test_sweep_resume.py": 46,
-    "tests/perception/nanodet/test_nanodet_reference.py": 46,
-    "tests/experiments/test_sweep.py": 42,
-    "tests/attacks/test_attacks.py": 39,
-}
-
+# ---- The longest files first, for `--dist loadfile` (`file_order.py`) ------------------------------
 
 def pytest_collection_modifyitems(config, items):
-    """Moves the files of LONGEST_FILES_S to the front, longest first; a stable sort keeps each file's tests
-    together and in order, and every other file where it was."""
-    rank = {path: i for i, path in enumerate(sorted(LONGEST_FILES_S, key=lambda path: -LONGEST_FILES_S[path]))}
-    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
+    longest_files_first(items)
 
 
 # ---- `pytest --cpu-durations=N`: where the suite's CPU time goes --------------------------------

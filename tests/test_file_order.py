@@ -1,11 +1,11 @@
-"""The test suite's own schedule (`tests/conftest.py`): the longest files go first under `--dist loadfile`."""
+"""The order of the test files under pytest-xdist (`tests/file_order.py`): the longest go out first."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from types import SimpleNamespace
 
-from conftest import LONGEST_FILES_S, pytest_collection_modifyitems
+from file_order import LONGEST_FILES_S, longest_files_first
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -21,6 +21,6 @@ def test_the_longest_files_come_first_and_every_file_stays_together_in_order():
     nodeids = ["tests/a.py::one", f"{second}::x", "tests/a.py::two", "tests/b.py::one", f"{longest}::y",
                f"{second}::z", f"{longest}::w"]
     items = [SimpleNamespace(nodeid=nodeid) for nodeid in nodeids]
-    pytest_collection_modifyitems(None, items)
+    longest_files_first(items)
     assert [item.nodeid for item in items] == [f"{longest}::y", f"{longest}::w", f"{second}::x", f"{second}::z",
                                                "tests/a.py::one", "tests/a.py::two", "tests/b.py::one"]
