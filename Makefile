@@ -37,6 +37,8 @@ quick: $(VENV)/.installed
 
 # The default and slow passes share their test files out to two processes (pytest-xdist), so both of the
 # 2-core machine's cores work; a file's tests stay in one process, so its module fixtures are built once.
+# --no-loadscope-reorder sends the files out longest first (tests/file_order.py), so neither process is left
+# with a long file at the end while the other idles.
 # The slow tests marked both_cores (two torch threads, or two workers, of their own) then run alone: beside
 # another test process they oversubscribe the cores: a texture regeneration took 267 s that way on a quiet
 # machine and 1048 s on a loaded one, against 149 s alone. TEST_WORKERS=0 runs everything in one process;

@@ -150,6 +150,14 @@ class ScenarioConfig:
     # report cover): 0 a clear sky (the default), 3-4 scattered, 5-6 broken. Not 7-8: the scene's sun always
     # shines, which a sky that closed would not let it. A fresh field for each scenario.seed (world/clouds.py).
     cloud_oktas: int = ranged(0, 0, 6, unit="oktas", note="7-8 would hide the sun, which the lighting does not model")
+    # The cloud base's height above the road (world/clouds.py): cumulus bases lie a few hundred metres up in
+    # humid sea air, 1-2 km over land in summer, 3 km and more over deserts. A lower layer is nearer, so its
+    # clouds look larger and less hazy near the horizon, where the sign stands against the sky.
+    cloud_base_m: float = ranged(1500.0, 300, 4000, unit="m")
+    # The meteorological visibility of the air between the camera and the clouds (Koschmieder's law fades a
+    # cloud's contrast over its slant range). It fades the clouds only: the scene is not fogged, and the clear
+    # sky keeps scenario.sky_turbidity (hazier air would raise both; here they are set apart).
+    cloud_visibility_km: float = ranged(30.0, 5, 150, unit="km")
     # Lane lines, stop line and crosswalk: "fresh", solid paint (the default renders); "worn", paint
     # abraded off the aggregate and flaked, showing the asphalt through it (world/surface_textures.py).
     road_paint: str = "fresh"

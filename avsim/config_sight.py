@@ -118,6 +118,12 @@ def _daylight_sky_unmet(config: SimConfig, sight: Sight) -> str:
     return _colour_unmet(config, sight) if not sight.colour else f"scenario.sky is {config.scenario.sky} (no daylight sky is drawn)"
 
 
+def _clouds_unmet(config: SimConfig, sight: Sight) -> str:
+    if not sight.colour or config.scenario.sky != "daylight":
+        return _daylight_sky_unmet(config, sight)
+    return "scenario.cloud_oktas is 0 (a clear sky: no clouds are drawn)"
+
+
 _PIXEL_PERCEPTIONS = ", ".join(FRAME_DETECTORS.names())
 PICTURE = Condition(
     lambda config, sight: bool(sight.drawn_cameras),
@@ -146,6 +152,10 @@ DAYLIGHT_SKY = Condition(
     lambda config, sight: sight.colour and config.scenario.sky == "daylight",
     "a run under the daylight sky (scenario.sky = daylight) that draws colour images",
     _daylight_sky_unmet, "set scenario.sky = daylight, in a run that draws colour images")
+CLOUDS = Condition(
+    lambda config, sight: sight.colour and config.scenario.sky == "daylight" and config.scenario.cloud_oktas > 0,
+    "a run under clouds (scenario.cloud_oktas > 0 with scenario.sky = daylight) that draws colour images",
+    _clouds_unmet, "set scenario.cloud_oktas above 0 and scenario.sky = daylight, in a run that draws colour images")
 SEEDED = Condition(
     lambda config, sight: config.scenario.start_jitter_m > 0 or (
         sight.perceives and sight.kind in FRAME_DETECTORS and config.perception.sensor_noise_std > 0) or (
@@ -179,6 +189,8 @@ RUN_CONDITIONS: dict[str, Condition] = {
     "scenario.fog_start_m": FOG_START,
     "scenario.sky_turbidity": DAYLIGHT_SKY,
     "scenario.cloud_oktas": DAYLIGHT_SKY,
+    "scenario.cloud_base_m": CLOUDS,
+    "scenario.cloud_visibility_km": CLOUDS,
     # A texture over another (alpha dropped, the same square face) changes only colour pixels; over
     # `none` it puts a stop sign where there was none, read by every run: `avsim run --config`
     # leaves scenario.sign out of its check where the cell has none (`avsim.cli.run`).

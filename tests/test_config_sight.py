@@ -37,7 +37,8 @@ ALWAYS = ("scenario.town", "scenario.placement", "scenario.sign_yaw_deg", "scena
 
 def test_every_conditional_key_is_in_one_group_here():
     grouped = [*PICTURE_KEYS, *COLOUR_KEYS, *SIDE_KEYS, "camera.seg_supersample", "scenario.fog_start_m", "scenario.seed",
-               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity", "scenario.cloud_oktas"]
+               "vehicle.abs_target_slip", "scenario.sign", "scenario.sky_turbidity", "scenario.cloud_oktas",
+               "scenario.cloud_base_m", "scenario.cloud_visibility_km"]
     assert sorted(grouped) == sorted(RUN_CONDITIONS)
 
 
@@ -55,6 +56,7 @@ def _expected(name: str, kind: str, recorded: bool) -> dict[str, bool]:
                  "scenario.fog_start_m": False,  # no fog by default
                  "scenario.sky_turbidity": False,  # the gradient sky by default
                  "scenario.cloud_oktas": False,
+                 "scenario.cloud_base_m": False, "scenario.cloud_visibility_km": False,  # no clouds by default
                  "vehicle.abs_target_slip": True, "scenario.seed": True,  # the default start jitter is 2 m
                  "perception.front_roi_px": "front" in cameras and kind in PIXEL,
                  "perception.side_roi_px": "side" in cameras and kind in PIXEL,
@@ -98,9 +100,14 @@ def test_conditions_on_other_keys_fog_seed_and_slip_control():
         check_read(with_overrides(no_jitter, {"perception": {"kind": "oracle"}}), {"scenario.seed"})
     # Clouds are drawn from the seed; the noise-free own detector then reads it through them alone.
     cloudy = with_overrides(no_jitter, {"perception": {"sensor_noise_std": 0.0}, "scenario": {"sky": "daylight", "cloud_oktas": 4}})
-    check_read(cloudy, {"scenario.seed", "scenario.cloud_oktas"})
+    check_read(cloudy, {"scenario.seed", "scenario.cloud_oktas", "scenario.cloud_base_m", "scenario.cloud_visibility_km"})
     with pytest.raises(ConfigError, match=r"scenario\.seed .* no clouds"):
         check_read(with_overrides(cloudy, {"scenario": {"cloud_oktas": 0}}), {"scenario.seed"})
+    # The layer's height and the air's visibility matter only where clouds are drawn.
+    with pytest.raises(ConfigError, match=r"scenario\.cloud_base_m .* this run's scenario\.cloud_oktas is 0 \(a clear sky"):
+        check_read(with_overrides(cloudy, {"scenario": {"cloud_oktas": 0}}), {"scenario.cloud_base_m"})
+    with pytest.raises(ConfigError, match=r"scenario\.cloud_visibility_km .* this run's scenario\.sky is gradient"):
+        check_read(no_jitter, {"scenario.cloud_visibility_km"}, recorded=False)
 
 
 def test_no_stop_sign_is_read_by_every_run_and_a_texture_only_where_colour_is_drawn(tmp_path, capsys):

@@ -5,8 +5,9 @@ module lays a seeded field of clouds over the clear daylight sky of `avsim.world
 stated in oktas (eighths of the sky, as weather observers report it), lit from the physics of a
 cloud seen from below rather than coloured by hand.
 
-**Where the clouds are.** One flat layer at CLOUD_BASE_M above the ground, where fair-weather
-cumulus have their bases over land in summer (1-2 km). A view direction d (world frame, z up) meets
+**Where the clouds are.** One flat layer at `scenario.cloud_base_m` above the ground (1500 m by
+default, where fair-weather cumulus have their bases over land in summer: 1-2 km; a few hundred metres
+in humid sea air, 3 km and more over deserts). A view direction d (world frame, z up) meets
 it at the horizontal point d_xy * h / d_z, so clouds crowd together towards the horizon, as a
 camera sees them. The layer's optical depth is fractal noise of that point (`cloud_noise`): five
 octaves, the largest wavelength CLOUD_WAVELENGTH_M (cumulus humilis and mediocris are 0.5-2 km
@@ -31,7 +32,8 @@ exposure factor (`avsim.world.sky`), so the clear patches are the daylight sky's
 **Distance.** Towards the horizon a cloud lies tens of kilometres away and the air in between
 lights up like the horizon sky: the cloud's contrast against the clear sky falls as
 exp(-3.912 r / V) over the slant range r (Koschmieder's law, V the meteorological visibility,
-VISIBILITY_M for clear air).
+`scenario.cloud_visibility_km`, 30 km by default for clear air). The same air would also raise the
+sky's turbidity; the two are set independently here, and V fades only the clouds.
 
 What is not modelled, each stated in docs/realism.md: the sunlit sides of towering clouds (a flat
 layer is seen from below only), the shadows clouds cast (the scene's sun is never behind a cloud,
@@ -42,20 +44,30 @@ the daylight sky already clips to white at this exposure).
 from __future__ import annotations
 
 import zlib
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-CLOUD_BASE_M = 1500.0  # height of the cloud base above the road [m]
 CLOUD_WAVELENGTH_M = 1600.0  # the noise's largest wavelength along the layer [m]
 CLOUD_OCTAVES = 5
 CLOUD_MAX_OPTICAL_DEPTH = 30.0  # vertical optical depth inside a cloud (fair-weather cumulus: about 10-50)
 CLOUD_ASYMMETRY_G = 0.85  # scattering asymmetry of cloud droplets at visible wavelengths
 DIRECT_NORMAL_ILLUMINANCE_LX = 100_000.0  # clear-sky direct sunlight on a surface facing the sun [lx], high sun
-VISIBILITY_M = 30_000.0  # meteorological visibility of clear air [m]
 CLOUD_TEXELS = 256  # a face of the cloudy skybox: 0.35 deg a texel, so a cloud's edge spans a few camera pixels
 _LATTICE = 64  # random values per octave and axis; the field repeats every 64 wavelengths (over 100 km)
 _KOSCHMIEDER = 3.912  # -ln(0.02): the contrast threshold that defines meteorological visibility
+
+
+@dataclass(frozen=True)
+class CloudLayer:
+    """One run's clouds: `oktas` (1-6) of the sky covered, in a layer `base_m` [m] above the road, faded
+    towards the horizon by air of meteorological visibility `visibility_m` [m], drawn from `rng`."""
+
+    oktas: int
+    base_m: float
+    visibility_m: float
+    rng: np.random.Generator
 
 
 def cloud_rng(seed: int, layout_seed: int) -> np.random.Generator:
@@ -64,12 +76,12 @@ def cloud_rng(seed: int, layout_seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, layout_seed, zlib.crc32(b"clouds")])
 
 
-def layer_points_m(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where each direction ((..., 3) unit, world frame) meets the cloud layer: the (...) horizontal x
+def layer_points_m(directions: np.ndarray, base_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each direction ((..., 3) unit, world frame) meets the cloud layer `base_m` [m] up: the (...) horizontal x
     and y [m] relative to the camera, and the slant range r [m]; directions at or below the horizon get
     r = inf (they never meet it) and x = y = 0."""
     above = directions[..., 2] > 0
-    met_range_m = CLOUD_BASE_M / np.where(above, directions[..., 2], 1.0)  # a placeholder range below the horizon
+    met_range_m = base_m / np.where(above, directions[..., 2], 1.0)  # a placeholder range below the horizon
     x_m = np.where(above, directions[..., 0] * met_range_m, 0.0)
     y_m = np.where(above, directions[..., 1] * met_range_m, 0.0)
     return x_m, y_m, np.where(above, met_range_m, np.inf)
@@ -99,12 +111,12 @@ def cloud_noise(x_m: np.ndarray, y_m: np.ndarray, rng: np.random.Generator, foot
     return total
 
 
-def texel_footprint_m(directions: np.ndarray, solid_angles_sr: np.ndarray) -> np.ndarray:
-    """How far along the cloud layer one texel reaches [m], in the direction it is most stretched: its
-    angular size sqrt(solid angle) at the slant range h / d_z, foreshortened by the layer's tilt to the
+def texel_footprint_m(directions: np.ndarray, solid_angles_sr: np.ndarray, base_m: float) -> np.ndarray:
+    """How far along the cloud layer `base_m` [m] up one texel reaches [m], in the direction it is most stretched:
+    its angular size sqrt(solid angle) at the slant range h / d_z, foreshortened by the layer's tilt to the
     ray (1 / d_z again). Infinite at and below the horizon."""
     up = np.maximum(directions[..., 2], 1e-9)
-    return np.where(directions[..., 2] > 0, np.sqrt(solid_angles_sr) * CLOUD_BASE_M / up ** 2, np.inf)
+    return np.where(directions[..., 2] > 0, np.sqrt(solid_angles_sr) * base_m / up ** 2, np.inf)
 
 
 def cover_threshold(noise: np.ndarray, weights: np.ndarray, oktas: int) -> float:
@@ -130,16 +142,16 @@ def base_luminance_kcd(tau: np.ndarray, sun_elevation_rad: float) -> np.ndarray:
 
 
 def cloudy_sky_linear(clear_rgb_kcd: np.ndarray, directions: np.ndarray, solid_angles_sr: np.ndarray,
-                      sun_elevation_rad: float, oktas: int, rng: np.random.Generator) -> np.ndarray:
+                      sun_elevation_rad: float, layer: CloudLayer) -> np.ndarray:
     """(6 * texels, texels, 3) linear RGB [kcd/m^2 in luminance] of the clear sky `clear_rgb_kcd` (same
-    shape, Preetham's luminance unit) with `oktas` of cloud over it, for the skybox texels' `directions`
+    shape, Preetham's luminance unit) with the clouds of `layer` over it, for the skybox texels' `directions`
     ((6 * texels, texels, 3) unit, world frame) and `solid_angles_sr` ((6 * texels, texels))."""
-    x_m, y_m, range_m = layer_points_m(directions)
-    noise = cloud_noise(x_m, y_m, rng, texel_footprint_m(directions, solid_angles_sr))
+    x_m, y_m, range_m = layer_points_m(directions, layer.base_m)
+    noise = cloud_noise(x_m, y_m, layer.rng, texel_footprint_m(directions, solid_angles_sr, layer.base_m))
     weights = solid_angles_sr * (directions[..., 2] > 0)
-    threshold = cover_threshold(noise, weights, oktas)
+    threshold = cover_threshold(noise, weights, layer.oktas)
     tau = np.where(directions[..., 2] > 0, optical_depth(noise, threshold, float(noise[weights > 0].std())), 0.0)
     through = np.exp(-tau)[..., None]
     cloudy = clear_rgb_kcd * through + base_luminance_kcd(tau, sun_elevation_rad)[..., None]
-    contrast = np.exp(-_KOSCHMIEDER * range_m / VISIBILITY_M)[..., None]  # 0 where the layer is never met
+    contrast = np.exp(-_KOSCHMIEDER * range_m / layer.visibility_m)[..., None]  # 0 where the layer is never met
     return clear_rgb_kcd + contrast * (cloudy - clear_rgb_kcd)

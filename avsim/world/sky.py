@@ -39,7 +39,7 @@ import mujoco
 import numpy as np
 
 from avsim.config import SKIES, ScenarioConfig
-from avsim.world.clouds import CLOUD_TEXELS, cloud_rng, cloudy_sky_linear
+from avsim.world.clouds import CLOUD_TEXELS, CloudLayer, cloud_rng, cloudy_sky_linear
 from avsim.world.signs import set_texture_data
 
 SKY_TEXTURE_NAME = "sky"
@@ -88,7 +88,8 @@ def add_sky(spec: mujoco.MjSpec, scenario: ScenarioConfig) -> None:
         raise ValueError(f"unknown sky {scenario.sky!r}; one of {', '.join(SKIES)}")
     sun = sun_direction(scenario.sun_elevation_deg, scenario.sun_azimuth_deg)
     texture = spec.add_texture(name=SKY_TEXTURE_NAME, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX)
-    clouds = (scenario.cloud_oktas, cloud_rng(scenario.seed, scenario.layout_seed)) if scenario.cloud_oktas else None
+    clouds = CloudLayer(scenario.cloud_oktas, scenario.cloud_base_m, scenario.cloud_visibility_km * 1000.0,
+                        cloud_rng(scenario.seed, scenario.layout_seed)) if scenario.cloud_oktas else None
     set_texture_data(texture, daylight_sky_texture(sun, scenario.sky_turbidity, texels=CLOUD_TEXELS if clouds else DAYLIGHT_TEXELS,
                                                    exposure_ev=scenario.sky_exposure_ev, clouds=clouds))
 
@@ -192,10 +193,10 @@ def upper_hemisphere_mean_luminance(rgb_linear: np.ndarray, texels: int, directi
 
 
 def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIGHT_TEXELS, exposure_ev: float = 0.0,
-                         clouds: tuple[int, np.random.Generator] | None = None) -> np.ndarray:
+                         clouds: CloudLayer | None = None) -> np.ndarray:
     """(6 * texels, texels, 3) uint8 sRGB skybox of the clear sky for the sun in direction `sun` ((3,)
     unit, world frame), scaled to the gradient sky's mean luminance over the upper hemisphere times
-    2 ** `exposure_ev` [stops]. clouds: (oktas, random stream) of the cumulus drawn over it
+    2 ** `exposure_ev` [stops]. clouds: the cumulus drawn over it
     (`avsim.world.clouds`), lit in the clear sky's unit and scaled by the clear sky's factor, so that
     the clear patches between them are the clear sky's own."""
     directions = cube_directions(texels)
@@ -205,7 +206,6 @@ def daylight_sky_texture(sun: np.ndarray, turbidity: float, texels: int = DAYLIG
     rgb = np.maximum(rgb, 0.0)
     scale = 2.0 ** exposure_ev * GRADIENT_MEAN_LINEAR_LUMINANCE / upper_hemisphere_mean_luminance(rgb, texels, directions)
     if clouds is not None:
-        oktas, rng = clouds
-        rgb = cloudy_sky_linear(rgb, directions, cube_solid_angles(texels), math.asin(float(np.clip(sun[2], -1.0, 1.0))), oktas, rng)
+        rgb = cloudy_sky_linear(rgb, directions, cube_solid_angles(texels), math.asin(float(np.clip(sun[2], -1.0, 1.0))), clouds)
     rgb *= scale
     return np.rint(srgb_encode(rgb) * 255).astype(np.uint8)

@@ -14,21 +14,23 @@ from avsim.world.scene import build_scene
 
 TEXELS = 64  # small faces keep these tests fast; the cover and the physics do not depend on the size
 SUN = sky.sun_direction(50.0, 30.0)
+DEFAULTS = ScenarioConfig()
+BASE_M, VISIBILITY_M = DEFAULTS.cloud_base_m, DEFAULTS.cloud_visibility_km * 1000.0
 
 
 def _optical_depth(oktas: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(tau, solid-angle weights above the horizon) of the texels of a TEXELS skybox, as the sky draws them."""
     directions = sky.cube_directions(TEXELS)
-    x_m, y_m, _ = clouds.layer_points_m(directions)
+    x_m, y_m, _ = clouds.layer_points_m(directions, BASE_M)
     solid_angles = sky.cube_solid_angles(TEXELS)
-    noise = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(seed, 0), clouds.texel_footprint_m(directions, solid_angles))
+    noise = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(seed, 0), clouds.texel_footprint_m(directions, solid_angles, BASE_M))
     weights = solid_angles * (directions[..., 2] > 0)
     threshold = clouds.cover_threshold(noise, weights, oktas)
     return clouds.optical_depth(noise, threshold, float(noise[weights > 0].std())) * (weights > 0), weights
 
 
-def _cloudy(oktas: int, seed: int = 0) -> np.ndarray:
-    return sky.daylight_sky_texture(SUN, 3.0, TEXELS, clouds=(oktas, clouds.cloud_rng(seed, 0)))
+def _cloudy(oktas: int, seed: int = 0, base_m: float = BASE_M, visibility_m: float = VISIBILITY_M) -> np.ndarray:
+    return sky.daylight_sky_texture(SUN, 3.0, TEXELS, clouds=clouds.CloudLayer(oktas, base_m, visibility_m, clouds.cloud_rng(seed, 0)))
 
 
 @pytest.mark.parametrize("oktas", [1, 4, 6])
@@ -70,8 +72,8 @@ def test_clouds_fade_into_the_horizon_haze():
 def test_octaves_finer_than_a_texel_fade_out_towards_the_horizon():
     # One texel straight up spans about 1.5 km / 64 texels; near the horizon the layer recedes and stretches.
     directions = np.array([[0.0, 0.0, 1.0], [0.9986, 0.0, 0.0523]])  # up, and 3 deg above the horizon
-    footprint = clouds.texel_footprint_m(directions, np.full(2, (math.pi / 2 / TEXELS) ** 2))
-    assert footprint[0] == pytest.approx(clouds.CLOUD_BASE_M * math.pi / 2 / TEXELS)
+    footprint = clouds.texel_footprint_m(directions, np.full(2, (math.pi / 2 / TEXELS) ** 2), BASE_M)
+    assert footprint[0] == pytest.approx(BASE_M * math.pi / 2 / TEXELS)
     assert footprint[1] > 300 * footprint[0]
     x_m, y_m = np.array([[0.0, 500.0]]), np.array([[0.0, 0.0]])
     # Where a texel spans kilometres only the first octave is left: the same as a field of that octave alone.
@@ -80,6 +82,46 @@ def test_octaves_finer_than_a_texel_fade_out_towards_the_horizon():
     assert not np.array_equal(coarse, sharp)
     first_octave_only = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(0, 0), np.full((1, 2), clouds.CLOUD_WAVELENGTH_M / 2))
     assert np.array_equal(coarse, first_octave_only)
+
+
+def _low_sky_change(cloudy: np.ndarray) -> float:
+    """Mean change (sum over RGB, 8-bit levels) from the clear sky of the texels 2-8 deg above the horizon,
+    where a sign at 20-100 m stands against the sky for the study's camera."""
+    elevation = np.degrees(np.arcsin(sky.cube_directions(TEXELS)[..., 2]))
+    clear = sky.daylight_sky_texture(SUN, 3.0, TEXELS).astype(float)
+    return float(np.abs(cloudy.astype(float) - clear).sum(axis=-1)[(elevation > 2) & (elevation < 8)].mean())
+
+
+def test_a_lower_cloud_base_and_clearer_air_show_the_clouds_more_near_the_horizon():
+    # Koschmieder's law: the contrast left at slant range r = h / sin(elevation) is exp(-3.912 r / V).
+    usual = _low_sky_change(_cloudy(4))
+    assert _low_sky_change(_cloudy(4, base_m=600.0)) > 1.5 * usual
+    assert _low_sky_change(_cloudy(4, visibility_m=80_000.0)) > 1.5 * usual
+    assert _low_sky_change(_cloudy(4, visibility_m=10_000.0)) < 0.5 * usual
+    # The cover is the oktas asked for at any height: the threshold is taken over the dome, not the layer.
+    directions, solid_angles = sky.cube_directions(TEXELS), sky.cube_solid_angles(TEXELS)
+    weights = solid_angles * (directions[..., 2] > 0)
+    x_m, y_m, _ = clouds.layer_points_m(directions, 600.0)
+    noise = clouds.cloud_noise(x_m, y_m, clouds.cloud_rng(0, 0), clouds.texel_footprint_m(directions, solid_angles, 600.0))
+    covered = weights[noise > clouds.cover_threshold(noise, weights, 4)].sum() / weights.sum()
+    assert covered == pytest.approx(0.5, abs=0.01)
+
+
+def test_the_cloud_base_and_visibility_are_read_from_the_scenario_and_checked():
+    assert (DEFAULTS.cloud_base_m, DEFAULTS.cloud_visibility_km) == (1500.0, 30.0)
+
+    def sky_of(**scenario) -> np.ndarray:
+        spec = mujoco.MjSpec()
+        sky.add_sky(spec, ScenarioConfig(sky="daylight", cloud_oktas=4, **scenario))
+        model = spec.compile()
+        return model.tex_data.copy()
+
+    usual = sky_of()
+    assert not np.array_equal(sky_of(cloud_base_m=600.0), usual)
+    assert not np.array_equal(sky_of(cloud_visibility_km=80.0), usual)
+    for key, bad in (("cloud_base_m", 100.0), ("cloud_base_m", math.nan), ("cloud_visibility_km", 0.0)):
+        with pytest.raises(ConfigError, match=f"scenario.{key}"):
+            ScenarioConfig(sky="daylight", cloud_oktas=4, **{key: bad})
 
 
 def test_the_field_is_the_seeds_own():
