@@ -37,15 +37,15 @@ quick: $(VENV)/.installed
 
 # The default and slow passes share their test files out to two processes (pytest-xdist), so both of the
 # 2-core machine's cores work; a file's tests stay in one process, so its module fixtures are built once.
-# --no-loadscope-reorder sends the files out longest first (tests/file_order.py), so neither process is left
-# with a long file at the end while the other idles.
+# In the slow pass --no-loadscope-reorder sends the files out longest first (tests/file_order.py), so neither
+# process is left with a long file at the end while the other idles.
 # The slow tests marked both_cores (two torch threads, or two workers, of their own) then run alone: beside
 # another test process they oversubscribe the cores: a texture regeneration took 267 s that way on a quiet
 # machine and 1048 s on a loaded one, against 149 s alone. TEST_WORKERS=0 runs everything in one process;
 # docs/performance.md has the times.
 TEST_WORKERS ?= 2
 test: $(VENV)/.installed
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 	$(PY) -m pytest -q -m 'slow and not regen and not both_cores' -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=20
 	$(PY) -m pytest -q -m 'slow and not regen and both_cores' --durations=5
 
