@@ -94,7 +94,10 @@ def cloud_noise(x_m: np.ndarray, y_m: np.ndarray, rng: np.random.Generator, foot
     footprint_m: (x_m's shape) how much of the layer one texel spans [m]. An octave finer than the first
     whose wavelength is under four footprints fades out, and is gone at two (the texture's Nyquist limit),
     so that the far clouds near the horizon do not alias into specks. The first octave stays everywhere:
-    it decides where the clouds are, and where it would alias, beyond about 20 km, the haze has hidden them."""
+    it decides where the clouds are. It too is under-sampled along the line of sight near the horizon: below about
+    6.9 deg for a 1500 m base (12.5 km away, where 30 km visibility leaves 20 % of a cloud's contrast) and 4.2 deg
+    for 600 m (8.1 km; 35 %, or 67 % at 80 km). There the texels sample the field coarsely rather than average it
+    (docs/realism.md, "When the cloud base and the visibility change")."""
     total = np.zeros(x_m.shape, np.float64)
     # The layer is offset by a random shift so that the camera does not always sit over a lattice node.
     shift_m = rng.uniform(0, _LATTICE * CLOUD_WAVELENGTH_M, size=2)
