@@ -8,6 +8,7 @@ under each (Wilson 95 %), then every pair whose outcome differs:
 
     MUJOCO_GL=egl python experiments/probes/setting_closed_loop.py table2_attacked_defended --setting textured_sheeting_clusters_shadows
     MUJOCO_GL=egl python experiments/probes/setting_closed_loop.py table3_stop_positions --setting textured_sheeting_clusters_shadows --set perception.kind=coco
+    MUJOCO_GL=egl python experiments/probes/setting_closed_loop.py coco_detector --cells "Town10" --setting scattered_clouds_low_clear --set scenario.sky=daylight
 
 It is not part of avsim; it writes nothing.
 """
@@ -44,16 +45,20 @@ def main() -> None:
     parser.add_argument("experiments", nargs="+", help="experiment file stems under experiments/")
     parser.add_argument("--setting", required=True, choices=tuple(SETTINGS))
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="applied to both runs of a pair")
+    parser.add_argument("--cells", default="", metavar="TEXT", help="only the cells whose name contains TEXT")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     common = parse_set(args.set)
     paths = [EXPERIMENTS_DIR / f"{name}.toml" for name in args.experiments]
-    specs = list(specs_for(load_study(paths)))
+    specs = [s for s in specs_for(load_study(paths)) if args.cells in s.cell]
+    if not specs:
+        parser.error(f"no cell of {', '.join(args.experiments)} has {args.cells!r} in its name")
     results = {}
     for label, setting in (("default", BASELINE), (args.setting, args.setting)):
         start = time.monotonic()
         # the setting as `avsim reproduce --setting` applies it, --set on top of both
-        runs = [dataclasses.replace(s, config=with_overrides(s.config, common)) for s in specs_for(load_study(paths, setting=setting))]
+        runs = [dataclasses.replace(s, config=with_overrides(s.config, common))
+                for s in specs_for(load_study(paths, setting=setting)) if args.cells in s.cell]
         records = run_batch(runs, workers=args.workers, description=label)
         results[label] = {(r["experiment"], r["cell"], r["seed"]): r["result"] for r in records if r["status"] == "ok"}
         print(f"{label}: {len(records)} runs in {(time.monotonic() - start) / 60:.1f} min")
