@@ -181,8 +181,9 @@ def sample_layer(directions: np.ndarray, solid_angles_sr: np.ndarray, layer: Clo
     """Sample the cloud `layer`'s noise `field` under the texels of `directions` ((..., 3) unit, world frame) with
     `solid_angles_sr` ((...)).
 
-    Towards the horizon one texel spans kilometres of the layer along the line of sight (`texel_footprint_m`), more
-    than a wavelength of the first octave below about 12 deg for a 1500 m base. A texel shows the mean of what its
+    Towards the horizon one texel spans kilometres of the layer along the line of sight (`texel_footprint_m`): for a
+    1500 m base more than SUB_SAMPLE_SPACING_M below about 13 deg, and more than a wavelength of the first octave
+    below about 5 deg. A texel shows the mean of what its
     solid angle sees, so a single point there would show one cloud or one gap where the eye sees the average of
     many: bands of cloud and sky in a coarse, seeded order. Such a texel is therefore sampled at up to
     MAX_SUB_SAMPLES points spread over its height in elevation (its angular size sqrt(solid angle), within 19 %
