@@ -61,7 +61,7 @@ SUB_SAMPLE_SPACING_M = CLOUD_WAVELENGTH_M / 8  # at most this far apart along a 
 # two octaves, which place the clouds and shape them, at four points or more a wavelength
 MAX_SUB_SAMPLES = 256  # points a texel at most; only the rows within a degree of the horizon reach it
 CONTRAST_FLOOR = 1e-3  # the share of a cloud's contrast below which a texel is not sub-sampled: under an 8-bit level
-_REMAP_COLUMNS = 4096
+_REMAP_COLUMNS = 4096  # points per row of cv2.remap's maps, which refuses 32767 rows or columns or more
 _LATTICE = 64  # random values per octave and axis; the field repeats every 64 wavelengths (over 100 km)
 _KOSCHMIEDER = 3.912  # -ln(0.02): the contrast threshold that defines meteorological visibility
 
@@ -132,8 +132,7 @@ class CloudField:
 
 def _bicubic(lattice: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(n,) values of `lattice` at (n,) lattice coordinates u (column) and v (row), bicubically interpolated and
-    wrapping at its edge (cv2.remap). remap refuses maps of 32767 rows or columns or more, so the points go
-    through as rows of _REMAP_COLUMNS."""
+    wrapping at its edge (cv2.remap), the points passed as rows of _REMAP_COLUMNS."""
     if u.size == 0:
         return np.zeros(0, np.float32)
     rows = -(-u.size // _REMAP_COLUMNS)
@@ -183,9 +182,8 @@ def sample_layer(directions: np.ndarray, solid_angles_sr: np.ndarray, layer: Clo
 
     Towards the horizon one texel spans kilometres of the layer along the line of sight (`texel_footprint_m`): for a
     1500 m base more than SUB_SAMPLE_SPACING_M below about 13 deg, and more than a wavelength of the first octave
-    below about 5 deg. A texel shows the mean of what its
-    solid angle sees, so a single point there would show one cloud or one gap where the eye sees the average of
-    many: bands of cloud and sky in a coarse, seeded order. Such a texel is therefore sampled at up to
+    below about 5 deg. A texel shows the mean of what its solid angle sees, so a single point there would show one
+    cloud or one gap where the eye sees the average of many: bands of cloud and sky in a coarse, seeded order. Such a texel is therefore sampled at up to
     MAX_SUB_SAMPLES points spread over its height in elevation (its angular size sqrt(solid angle), within 19 %
     of its true height on a cube face), which keeps the first octave sampled at least twice a wavelength down to
     about 0.4 deg for a 1500 m base and 0.25 deg for 600 m, 100 km and more away. A texel keeps its one point
