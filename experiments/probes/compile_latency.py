@@ -96,6 +96,7 @@ def main() -> None:
     compare({f"own detector, bf16 autocast, {x1 - x0}x{y1 - y0} crop": (lambda x: runner._maps(x), crop),
              f"COCO CenterNet, bf16, {upscaled.shape[3]}x{upscaled.shape[2]} (upscale)": (coco, upscaled)})
 
+
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as cache:
         os.environ["TORCHINDUCTOR_CACHE_DIR"] = cache  # a cold cache: the compile time a fresh worker pays

@@ -34,6 +34,11 @@ def _cloudy(oktas: int, seed: int = 0, base_m: float = BASE_M, visibility_m: flo
     return sky.daylight_sky_texture(SUN, 3.0, texels, clouds=clouds.CloudLayer(oktas, base_m, visibility_m, clouds.cloud_rng(seed, 0)))
 
 
+def _elevation_deg(texels: int) -> np.ndarray:
+    """(6 * texels, texels) elevation [deg] of each texel of a skybox of `texels`-sized faces."""
+    return np.degrees(np.arcsin(sky.cube_directions(texels)[..., 2]))
+
+
 @pytest.mark.parametrize("oktas", [1, 4, 6])
 def test_the_clouds_cover_the_sky_dome_in_the_oktas_asked_for(oktas):
     tau, weights = _optical_depth(oktas)
@@ -43,8 +48,8 @@ def test_the_clouds_cover_the_sky_dome_in_the_oktas_asked_for(oktas):
 
 def test_the_clear_patches_are_the_clear_skys_own_texels():
     # A texel is clear where every point it is the mean of lies between the clouds (or never meets the layer).
-    _, weights = _optical_depth(4)
     directions, solid_angles = sky.cube_directions(TEXELS), sky.cube_solid_angles(TEXELS)
+    weights = solid_angles * (directions[..., 2] > 0)
     samples = clouds.sample_layer(directions, solid_angles, clouds.CloudLayer(4, BASE_M, VISIBILITY_M, None),
                                   clouds.CloudField.draw(clouds.cloud_rng(0, 0)))
     threshold = clouds.cover_threshold(samples.texel_noise, weights.reshape(-1), 4)
@@ -68,10 +73,9 @@ def test_a_cloud_base_is_bright_at_its_thin_edge_and_grey_where_thick():
 
 
 def test_clouds_fade_into_the_horizon_haze():
-    directions = sky.cube_directions(TEXELS)
     clear = sky.daylight_sky_texture(SUN, 3.0, TEXELS).astype(float)
     change = np.abs(_cloudy(6).astype(float) - clear).sum(axis=-1)
-    elevation = np.degrees(np.arcsin(directions[..., 2]))
+    elevation = _elevation_deg(TEXELS)
     assert change[(elevation > 0) & (elevation < 3)].mean() < 0.2 * change[elevation > 30].mean()
     assert change[elevation < 0].max() == 0  # the ground hides what is below the horizon
 
@@ -90,10 +94,6 @@ def test_octaves_finer_than_a_texel_fade_out_towards_the_horizon():
     assert not np.array_equal(coarse, sharp)
     first_octave_only = field.noise(x_m, y_m, np.full((1, 2), clouds.CLOUD_WAVELENGTH_M / 2))
     assert np.array_equal(coarse, first_octave_only)
-
-
-def _elevation_deg(texels: int) -> np.ndarray:
-    return np.degrees(np.arcsin(sky.cube_directions(texels)[..., 2]))
 
 
 def test_near_the_horizon_a_texel_shows_the_mean_of_the_clouds_along_its_line_of_sight(monkeypatch):
@@ -141,7 +141,7 @@ def test_a_texel_is_sampled_along_its_line_of_sight_only_where_it_spans_much_of_
 def _low_sky_change(cloudy: np.ndarray) -> float:
     """Mean change (sum over RGB, 8-bit levels) from the clear sky of the texels 2-8 deg above the horizon,
     where a sign at 20-100 m stands against the sky for the study's camera."""
-    elevation = np.degrees(np.arcsin(sky.cube_directions(TEXELS)[..., 2]))
+    elevation = _elevation_deg(TEXELS)
     clear = sky.daylight_sky_texture(SUN, 3.0, TEXELS).astype(float)
     return float(np.abs(cloudy.astype(float) - clear).sum(axis=-1)[(elevation > 2) & (elevation < 8)].mean())
 
