@@ -23,12 +23,13 @@ from avsim.validation import check_ranges, ranged
 C = TypeVar("C")
 # Values of PerceptionConfig.coco_input (perception/coco/preprocess.py says what each does).
 COCO_INPUTS = ("resize", "crop", "upscale")
-# Values of PerceptionConfig.coco_precision: the float32 port, or its bfloat16 copy (perception/coco/bf16.py).
-COCO_PRECISIONS = ("fp32", "bf16")
-# The own detector's arithmetics: float32, or bfloat16 autocast (perception/detector/infer.py).
-DETECTOR_ARITHMETICS = ("fp32", "bf16")
-# Values of PerceptionConfig.detector_precision: "auto" (bf16 where the CPU runs it, else fp32) or either arithmetic.
-DETECTOR_PRECISIONS = ("auto",) + DETECTOR_ARITHMETICS
+# The arithmetics a network runs in: float32, or bfloat16 (the own detector under autocast,
+# perception/detector/infer.py; the COCO CenterNet and YOLO as bfloat16 copies, perception/coco/bf16.py and
+# perception/yolo/bf16.py).
+ARITHMETICS = ("fp32", "bf16")
+# Values of PerceptionConfig.detector_precision, coco_precision and yolo_precision: "auto" (bf16 where the
+# CPU runs it, else fp32; perception/cpu_bf16.py) or either arithmetic.
+PRECISIONS = ("auto",) + ARITHMETICS
 # Values of PerceptionConfig.purify (perception/purify.py) and .ensemble_fusion (perception/ensemble.py).
 PURIFIERS = ("none", "jpeg", "median")
 ENSEMBLE_FUSIONS = ("or", "and", "k_of_n")
@@ -429,9 +430,10 @@ class PerceptionConfig:
     # in every 5-m bin of both cameras and its rate of false stop signs in every town lay inside
     # fp32's Wilson 95% intervals (27 of 27); over 3985 stop-sign detections paired with their
     # fp32 twins the score moved by 0.0066 (median), 0.144 at most
-    # (`python -m avsim.perception.coco.realism --precisions fp32,bf16`). It needs a CPU on
-    # which oneDNN runs bf16 (AVX-512); elsewhere set "fp32".
-    coco_precision: str = "bf16"
+    # (`python -m avsim.perception.coco.realism --precisions fp32,bf16`). "bf16" needs a CPU on
+    # which oneDNN runs bf16 (AVX-512); "auto" is bf16 on such a CPU and fp32 elsewhere, as for the
+    # own detector, and a batch's manifest says which.
+    coco_precision: str = "auto"
     # `onnx`: a YOLOv8/YOLO11-style ONNX detector (output [1, 4 + C, N]: cx, cy, w, h, C class
     # scores) and its class names, index = class id; "stop_sign" is the class the policies act on.
     onnx_path: str = ""
@@ -448,7 +450,7 @@ class PerceptionConfig:
     yolo_names: str = ""
     yolo_input: str = "upscale"
     yolo_upscale: float = ranged(2.0, 1, 4)
-    yolo_precision: str = "fp32"  # "bf16": a bfloat16 copy (perception/yolo/bf16.py)
+    yolo_precision: str = "fp32"  # "bf16": a bfloat16 copy (perception/yolo/bf16.py); "auto" as coco_precision
     # Input purification before the network (a defence, perception/purify.py): "jpeg" re-compresses
     # each frame at purify_jpeg_quality, "median" median-blurs it with a purify_median_kernel_px
     # square kernel; "none" leaves it as rendered. Any pixel perception; not the oracle.
@@ -474,16 +476,13 @@ class PerceptionConfig:
             x0, y0, x1, y1 = getattr(self, key)
             _require(0 <= x0 < x1 and 0 <= y0 < y1,
                      f"perception.{key} must be [x0, y0, x1, y1] with 0 <= x0 < x1 and 0 <= y0 < y1 [px], got {list(getattr(self, key))}")
-        _require(self.detector_precision in DETECTOR_PRECISIONS,
-                 f"perception.detector_precision must be one of {', '.join(DETECTOR_PRECISIONS)}, got {self.detector_precision!r}")
+        for key in ("detector_precision", "coco_precision", "yolo_precision"):
+            _require(getattr(self, key) in PRECISIONS,
+                     f"perception.{key} must be one of {', '.join(PRECISIONS)}, got {getattr(self, key)!r}")
         _require(self.coco_input in COCO_INPUTS,
                  f"perception.coco_input must be one of {', '.join(COCO_INPUTS)}, got {self.coco_input!r}")
-        _require(self.coco_precision in COCO_PRECISIONS,
-                 f"perception.coco_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.coco_precision!r}")
         _require(self.yolo_input in COCO_INPUTS,
                  f"perception.yolo_input must be one of {', '.join(COCO_INPUTS)}, got {self.yolo_input!r}")
-        _require(self.yolo_precision in COCO_PRECISIONS,
-                 f"perception.yolo_precision must be one of {', '.join(COCO_PRECISIONS)}, got {self.yolo_precision!r}")
         _require(bool(self.yolo_cfg) == bool(self.yolo_weights),
                  "perception.yolo_cfg and perception.yolo_weights go together: give both (your own Darknet files) or "
                  "neither (the fetched YOLOv3-tiny)")

@@ -1,8 +1,8 @@
 """What software and arithmetic a batch ran on, for its manifest (`versions`).
 
-A config holds `perception.detector_precision = "auto"` as given (so that its hash, and a
-resumed batch, do not depend on the CPU); what "auto" ran as is a property of the machine, and
-is recorded here beside the library versions.
+A config holds `perception.detector_precision = "auto"` (and `coco_precision`, `yolo_precision`) as
+given, so that its hash, and a resumed batch, do not depend on the CPU; what "auto" ran as is a
+property of the machine, the same for every network, and is recorded here beside the library versions.
 """
 
 from __future__ import annotations
@@ -14,12 +14,13 @@ import mujoco
 import numpy
 import torch
 
-from avsim.perception.cpu_bf16 import detector_arithmetic
+from avsim.perception.cpu_bf16 import auto_arithmetic
 
 
 def software_versions() -> dict[str, str]:
-    """Python, MuJoCo, torch and numpy versions, the machine, and `detector_precision_auto`: the
-    arithmetic ("fp32" or "bf16") that `perception.detector_precision = "auto"` (the default) runs as here."""
+    """Python, MuJoCo, torch and numpy versions, the machine, and `precision_auto`: the arithmetic
+    ("fp32" or "bf16") that a network's precision "auto" (the own detector's and the COCO CenterNet's
+    default) runs as here."""
     return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
             "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "detector_precision_auto": detector_arithmetic("auto")}
+            "precision_auto": auto_arithmetic()}

@@ -258,7 +258,7 @@ def test_onnx_classes_take_a_list_of_names_of_any_length():
 
 @pytest.mark.parametrize("key,value,message", [("coco_input", "zoom", "coco_input must be one of resize, crop, upscale"),
                                                ("coco_upscale", 8.0, "coco_upscale must be in [1, 4]"),
-                                               ("coco_precision", "fp16", "coco_precision must be one of fp32, bf16")])
+                                               ("coco_precision", "fp16", "coco_precision must be one of auto, fp32, bf16")])
 def test_coco_keys_are_checked(key, value, message):
     with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("]", r"\]")):
         with_overrides(SimConfig(), {"perception": {key: value}})

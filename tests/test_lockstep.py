@@ -7,6 +7,7 @@ import pytest
 from avsim.experiments.batch import run_batch
 from avsim.experiments.plan import group_size, lockstep_groups
 from avsim.lockstep import run_lockstep
+from avsim.perception.cpu_bf16 import auto_arithmetic
 from avsim.runner import run_config
 from helpers import SHORT_RUN, make_config, short_run_spec
 
@@ -32,11 +33,14 @@ def _mixed_cells(perception: dict) -> list:
     return [*configs, oracle]
 
 
+# The default arithmetic ("auto": bf16 where the CPU runs it, whose frames share network calls, else fp32)
+# in the default pass; fp32 in the slow pass where the default is bf16 (elsewhere the first case ran it).
 @pytest.mark.parametrize("perception", [
-    {"kind": "detector", "detector_precision": "bf16"},
-    pytest.param({"kind": "detector", "detector_precision": "fp32"}, marks=pytest.mark.slow),
-    pytest.param({"kind": "detector", "detector_precision": "bf16", "purify": "jpeg"}, marks=pytest.mark.slow),
-], ids=["detector-bf16", "detector-fp32", "detector-bf16-jpeg"])
+    {"kind": "detector", "detector_precision": "auto"},
+    pytest.param({"kind": "detector", "detector_precision": "fp32"},
+                 marks=[pytest.mark.slow, pytest.mark.skipif(auto_arithmetic() == "fp32", reason="auto ran fp32 already")]),
+    pytest.param({"kind": "detector", "detector_precision": "auto", "purify": "jpeg"}, marks=pytest.mark.slow),
+], ids=["detector-auto", "detector-fp32", "detector-auto-jpeg"])
 def test_a_mixed_batch_of_eight_gives_each_run_its_lone_result_bit_for_bit(perception):
     configs = _mixed_cells(perception)
     alone = [run_config(config)[0] for config in configs]
@@ -63,7 +67,7 @@ def test_a_failing_run_fails_alone_and_the_batch_goes_on():
 
 
 def test_batch_records_equal_lone_records_apart_from_wall_time():
-    specs = [short_run_spec(f"cell{seed}", seed, perception={"kind": "detector", "detector_precision": "bf16"},
+    specs = [short_run_spec(f"cell{seed}", seed, perception={"kind": "detector", "detector_precision": "auto"},
                             loop={"max_time_s": 2.0}) for seed in range(3)]
     strip = lambda records: [{k: v for k, v in r.items() if k != "wall_s"} for r in records]  # noqa: E731
     lone = run_batch(specs, workers=1, progress=False)

@@ -57,11 +57,15 @@ def test_a_run_that_had_no_stop_to_make_prints_its_own_outcome(outcome, line_m, 
 @pytest.mark.parametrize("perception, header", [
     ({"kind": "detector", "detector_precision": "auto"}, "perception detector (fp32)"),
     ({"kind": "detector", "detector_precision": "fp32"}, "perception detector (fp32)"),
-    ({"kind": "ensemble", "ensemble_members": ["detector", "coco"], "detector_precision": "auto"}, "perception ensemble (fp32)"),
-    ({"kind": "ensemble", "ensemble_members": ["coco", "yolo"], "detector_precision": "auto"}, "perception ensemble /"),
-    ({"kind": "coco"}, "perception coco /"),
+    ({"kind": "ensemble", "ensemble_members": ["detector", "coco"], "detector_precision": "auto"},
+     "perception ensemble (detector fp32, coco fp32) /"),
+    ({"kind": "ensemble", "ensemble_members": ["coco", "yolo"]}, "perception ensemble (coco fp32, yolo fp32) /"),
+    ({"kind": "coco"}, "perception coco (fp32) /"),
+    ({"kind": "yolo", "yolo_precision": "fp32"}, "perception yolo (fp32) /"),
+    ({"kind": "nanodet"}, "perception nanodet /"),
+    ({"kind": "oracle"}, "perception oracle /"),
 ])
-def test_the_header_names_the_arithmetic_the_own_detector_ran_in(monkeypatch, perception, header):
+def test_the_header_names_the_arithmetic_each_network_ran_in(monkeypatch, perception, header):
     # On a CPU without bf16 "auto" is fp32; the config keeps "auto", the summary says what ran.
     monkeypatch.setattr("avsim.perception.cpu_bf16.onednn_runs_bf16", lambda: False)
     config = SimConfig().to_dict()

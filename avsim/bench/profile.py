@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from avsim.config import SimConfig, with_overrides
+from avsim.perception.cpu_bf16 import arithmetics_here, auto_arithmetic
 from avsim.profiling import STAGES, profile_run
 
 # Issue 25's targets for one run at 1 thread, as real-time ratios.
@@ -25,8 +26,10 @@ ONE_RUN_TARGETS = {"town07, one camera": 5.0, "town10, one camera": 3.0, "town07
 
 
 def _config(town: str, policy: str, perception: str, precision: str) -> SimConfig:
+    """The study's run in `town` under `policy`, with `perception` ("detector" or "coco") at `precision`."""
+    key = "detector_precision" if perception == "detector" else f"{perception}_precision"
     return with_overrides(SimConfig(), {"scenario": {"town": town}, "policy": {"name": policy},
-                                        "perception": {"kind": perception, "detector_precision": precision}})
+                                        "perception": {"kind": perception, key: precision}})
 
 
 def _print_stages(label: str, config: SimConfig, rrd: bool = False) -> float:
@@ -72,23 +75,24 @@ def run_profile(quick: bool = False) -> None:
     print("avsim bench --profile: one run's time by stage (exclusive: a stage excludes those it calls), "
           "then a batch's; 1 torch thread")
     ratios: dict[str, float] = {}
-    for precision in ("fp32", "bf16"):
+    arithmetics = arithmetics_here()  # bf16 only where this CPU runs it
+    for precision in arithmetics:
         ratios[f"town07, one camera, {precision}"] = _print_stages(
             f"town07, baseline (one camera), detector {precision}", _config("town07", "baseline", "detector", precision))
     if not quick:
-        for precision in ("fp32", "bf16"):
+        for precision in arithmetics:
             ratios[f"town10, one camera, {precision}"] = _print_stages(
                 f"town10, baseline (one camera), detector {precision}", _config("town10", "baseline", "detector", precision))
             ratios[f"town07, two cameras, {precision}"] = _print_stages(
                 f"town07, side_camera (two cameras), detector {precision}", _config("town07", "side_camera", "detector", precision))
         _print_stages("town07, baseline, detector fp32, recorded (--rrd)", _config("town07", "baseline", "detector", "fp32"), rrd=True)
-        ratios["coco"] = _print_stages("town07, baseline (one camera), coco", _config("town07", "baseline", "coco", "fp32"))
+        ratios["coco"] = _print_stages(f"town07, baseline (one camera), coco {auto_arithmetic()}", _config("town07", "baseline", "coco", "auto"))
 
     # A batch: the same 8 runs one at a time and 8 to a worker, on one worker and on one per core.
     runs = 4 if quick else 8
-    configs = [with_overrides(_config("town07", "baseline", "detector", "bf16"), {"scenario": {"seed": seed}})
+    configs = [with_overrides(_config("town07", "baseline", "detector", "auto"), {"scenario": {"seed": seed}})
                for seed in range(runs)]
-    print(f"\n  batch of {runs} runs (town07, baseline, detector bf16, seeds 0-{runs - 1}):")
+    print(f"\n  batch of {runs} runs (town07, baseline, detector {auto_arithmetic()}, seeds 0-{runs - 1}):")
     print(f"    {'workers':>7s} {'batch':>5s} {'wall s':>7s} {'sim s per wall s per worker':>28s} "
           f"{'sim s per CPU s':>16s} {'records sent':>13s}")
     per_core: dict[tuple[int, int], float] = {}
@@ -100,7 +104,7 @@ def run_profile(quick: bool = False) -> None:
 
     print("\n  targets (issue 25) and what this printout measured:")
     for name, target in ONE_RUN_TARGETS.items():
-        measured = ", ".join(f"{precision} {ratios[f'{name}, {precision}']:.2f}x" for precision in ("fp32", "bf16")
+        measured = ", ".join(f"{precision} {ratios[f'{name}, {precision}']:.2f}x" for precision in arithmetics
                              if f"{name}, {precision}" in ratios)
         if measured:
             print(f"    detector closed loop, {name:22s} >= {target:.0f}x real time: {measured} per CPU second")

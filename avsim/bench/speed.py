@@ -10,9 +10,10 @@ import time
 
 import mujoco
 
-from avsim.config import COCO_INPUTS, COCO_PRECISIONS, SimConfig, with_overrides
+from avsim.config import COCO_INPUTS, SimConfig, with_overrides
 from avsim.bench.gym_env import print_env_rows, print_vector_rows
 from avsim.loop import ClosedLoop
+from avsim.perception.cpu_bf16 import arithmetic, arithmetics_here
 from avsim.runner import run_config
 from avsim.sensors.regions import regions_px
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
@@ -95,9 +96,9 @@ def _yolo_rows(config: SimConfig, frames: int) -> None:
     precision, as deployed: input, network, decoding, mapping and NMS (rendering excluded)."""
     from avsim.perception.factory import build_frame_detector
 
-    default = (config.perception.yolo_input, config.perception.yolo_precision)
+    default = (config.perception.yolo_input, arithmetic(config.perception.yolo_precision, "perception.yolo_precision"))
     for yolo_input in COCO_INPUTS:
-        for yolo_precision in COCO_PRECISIONS:
+        for yolo_precision in arithmetics_here():
             detector = build_frame_detector(with_overrides(config.perception, {"kind": "yolo", "yolo_input": yolo_input,
                                                                                 "yolo_precision": yolo_precision}))
             median_ms, p90_ms = _ms_per_frame(detector, _approach_frames(config), frames, regions_px(config.perception, config.camera)["front"])
@@ -190,8 +191,8 @@ def run_benchmarks(quick: bool = False) -> None:
                       "detector", ("town07",), "the same run without anti-lock brakes or traction control",
                       (("one camera, 2 threads, no ABS/TCS", "baseline"),))
     # The COCO CenterNet (--perception coco), at perception.threads (1) on the front region of interest.
-    mode, precision = base.perception.coco_input, base.perception.coco_precision
-    settings = [(mode, p) for p in (precision, *(p for p in COCO_PRECISIONS if p != precision))]
+    mode, precision = base.perception.coco_input, arithmetic(base.perception.coco_precision, "perception.coco_precision")
+    settings = [(mode, p) for p in (precision, *(p for p in arithmetics_here() if p != precision))]
     settings += [(m, precision) for m in COCO_INPUTS if m != mode]
     for coco_input, coco_precision in settings:
         median_ms, p90_ms = _coco_ms_per_frame(base, 20 if quick else 100, coco_input, coco_precision)

@@ -47,12 +47,13 @@ def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
     import torch
 
     from avsim.perception.coco.bf16 import Bf16CenterNet
-    from avsim.perception.coco.model import load_centernet
     from avsim.perception.coco.infer import CocoRunner
+    from avsim.perception.coco.model import load_centernet
+    from avsim.perception.cpu_bf16 import arithmetic
 
     torch.set_num_threads(config.threads)
     model = load_centernet()
-    if config.coco_precision == "bf16":
+    if arithmetic(config.coco_precision, "perception.coco_precision") == "bf16":
         model = Bf16CenterNet(model)
     return CocoRunner(model, config.coco_input, config.coco_upscale, config.min_confidence)
 
@@ -61,13 +62,15 @@ def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
     # Imported here so runs without it never import the reader (nor need its fetched files).
     import torch
 
+    from avsim.perception.cpu_bf16 import arithmetic
     from avsim.perception.yolo.bf16 import Bf16Yolo
     from avsim.perception.yolo.model import load_yolo
     from avsim.perception.yolo.infer import YoloRunner
 
     torch.set_num_threads(config.threads)
     model = load_yolo(config.yolo_cfg or None, config.yolo_weights or None, config.yolo_names or None)
-    return YoloRunner(Bf16Yolo(model) if config.yolo_precision == "bf16" else model, config.yolo_input,
+    bf16 = arithmetic(config.yolo_precision, "perception.yolo_precision") == "bf16"
+    return YoloRunner(Bf16Yolo(model) if bf16 else model, config.yolo_input,
                       config.yolo_upscale, config.min_confidence)
 
 

@@ -1,6 +1,6 @@
 """One-off probe: what opens the braking gate under YOLOv3-tiny in Town07 standard, with solid and with
 see-through tree crowns (`scenario.foliage`). Each run is `avsim run --town town07 --placement standard
---perception yolo --set perception.yolo_precision=bf16 --seed SEED --set scenario.foliage=FOLIAGE`
+--perception yolo --set perception.yolo_precision=auto --seed SEED --set scenario.foliage=FOLIAGE`
 (baseline policy, clean sign). At the first step whose command brakes, it prints each confident
 stop-sign box (score >= policy.conf_threshold), its height, the pinhole range the policy reads from it,
 and what the box sits on: the geom most common in the middle ninth of the box, from a segmentation render
@@ -30,7 +30,7 @@ def main(seeds: list[int], foliages: list[str]) -> None:
         for seed in seeds:
             config = with_overrides(SimConfig(), {
                 "scenario": {"town": "town07", "placement": "standard", "seed": seed, "foliage": foliage},
-                "perception": {"kind": "yolo", "yolo_precision": "bf16"}, "policy": {"name": "baseline"}})
+                "perception": {"kind": "yolo", "yolo_precision": "auto"}, "policy": {"name": "baseline"}})
             loop = ClosedLoop(config)
             gate = None
             while not loop.done():

@@ -51,7 +51,7 @@ def main(draws: int, out: Path) -> None:
         rows += run_benchmark(plan, workers=1)
         config = with_overrides(SimConfig(), {
             "scenario": {"town": "town07", "placement": "standard", "seed": 0, "foliage": "clusters"},
-            "perception": {"kind": "yolo", "yolo_precision": "bf16"}, "policy": {"name": "baseline"}})
+            "perception": {"kind": "yolo", "yolo_precision": "auto"}, "policy": {"name": "baseline"}})
         loop = ClosedLoop(config)
         clusters = sum(len(foliage.leaf_clusters(crown, foliage.crown_rng(0, geom.name.removesuffix(foliage.CROWN_SUFFIX))).scales)
                        for geom, crown in foliage.crown_envelopes(_solid_spec()))

@@ -65,7 +65,7 @@ def test_every_run_has_a_record_in_spec_order_and_its_own_recording(results):
 def test_manifest_and_a_copy_of_the_experiment_file(results):
     manifest = json.loads((results / "manifest.json").read_text())
     assert manifest["runs"] == 7 and manifest["failed"] == 0 and manifest["workers"] == 1
-    assert manifest["versions"]["detector_precision_auto"] in ("fp32", "bf16")  # what the default ran as
+    assert manifest["versions"]["precision_auto"] in ("fp32", "bf16")  # what the default ran as
     assert (results / "experiments" / "table3_stop_positions.toml").read_text() == TINY_TABLE3
 
 

@@ -41,10 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
-from avsim.config import COCO_INPUTS, COCO_PRECISIONS, CameraConfig, PerceptionConfig
+from avsim.config import ARITHMETICS, COCO_INPUTS, CameraConfig, PerceptionConfig
 from avsim.errors import ConfigError
 from avsim.validation import OneLineArgumentParser, config_flag, number_flag
 from avsim.perception.ap import box_iou, match_detections
+from avsim.perception.cpu_bf16 import arithmetic, arithmetics_here
 from avsim.sensors.regions import regions_px
 from avsim.stats import wilson_interval
 
@@ -139,7 +140,7 @@ def _recall_rows(rows: list[dict]) -> list[dict]:
 
 
 def _settings(rows: list[dict]) -> list[str]:
-    order = {(m, p): i for i, (m, p) in enumerate((m, p) for m in COCO_INPUTS for p in COCO_PRECISIONS)}
+    order = {(m, p): i for i, (m, p) in enumerate((m, p) for m in COCO_INPUTS for p in ARITHMETICS)}
     return [f"{m} {p}" for m, p in sorted({(r["mode"], r["precision"]) for r in rows}, key=order.get)]
 
 
@@ -304,8 +305,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", help="output folder (default results/<network>_realism)")
     args = parser.parse_args(argv)
     defaults = PerceptionConfig()
-    if args.precisions is None:
-        args.precisions = getattr(defaults, f"{args.network}_precision")
+    if args.precisions is None:  # what the config's precision runs as on this CPU
+        args.precisions = arithmetic(getattr(defaults, f"{args.network}_precision"), f"perception.{args.network}_precision")
     if args.out is None:
         args.out = f"results/{args.network}_realism"
     modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())
@@ -314,9 +315,12 @@ def main(argv: list[str] | None = None) -> int:
         bad = [m for m in modes if m not in COCO_INPUTS]
         if bad or not modes:
             raise ConfigError(f"unknown --modes {bad}; choose from {', '.join(COCO_INPUTS)}")
-        bad = [p for p in precisions if p not in COCO_PRECISIONS]
+        bad = [p for p in precisions if p not in ARITHMETICS]
         if bad or not precisions:
-            raise ConfigError(f"unknown --precisions {bad}; choose from {', '.join(COCO_PRECISIONS)}")
+            raise ConfigError(f"unknown --precisions {bad}; choose from {', '.join(ARITHMETICS)}")
+        if "bf16" in precisions and "bf16" not in arithmetics_here():
+            raise ConfigError("--precisions bf16 needs a CPU on which oneDNN runs bfloat16 (AVX-512), and this one "
+                              "has none; use --precisions fp32")
         for data in map(Path, args.data):
             if not (data / "train.jsonl").is_file():
                 raise ConfigError(f"{data} has no train.jsonl; make one with `avsim detector make-data --out {data}`")

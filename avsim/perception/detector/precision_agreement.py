@@ -16,7 +16,7 @@ import math
 import sys
 from pathlib import Path
 
-from avsim.config import DETECTOR_ARITHMETICS
+from avsim.config import ARITHMETICS
 from avsim.errors import AvsimError
 from avsim.perception.detector.data import split_path
 from avsim.perception.evaluation import EvalReport, evaluate
@@ -29,7 +29,7 @@ def measure(data_dir: str | Path, conf_threshold: float, split: str = "val", lim
     from avsim.perception.detector.weights import resolve_weights_path
 
     reports = {}
-    for precision in DETECTOR_ARITHMETICS:
+    for precision in ARITHMETICS:
         runner = SignDetectorRunner(resolve_weights_path(""), conf_threshold=0.01, num_threads=1, precision=precision)
         reports[precision] = evaluate(runner.detect, data_dir, conf_threshold, split=split, limit=limit, progress=progress)
     return reports

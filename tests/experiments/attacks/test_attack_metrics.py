@@ -169,7 +169,7 @@ def test_the_yolo_texture_files_pair_every_texture_made_against_the_own_detector
         experiment = load_experiment(ATTACK_EXPERIMENTS / name)
         assert experiment.seeds == seeds
         assert {(c.config.perception.kind, c.config.perception.yolo_precision, c.config.policy.name)
-                for c in experiment.cells} == {("yolo", "bf16", "baseline")}
+                for c in experiment.cells} == {("yolo", "auto", "baseline")}
         signs = signs_by_place(experiment)
         assert len(signs) == places
         assert all(at_place == own | {"clean"} for at_place in signs.values()), name

@@ -1,5 +1,6 @@
 """`perception.coco_precision = "bf16"`: deterministic, near the float32 port on real renders, and
-leaving the float32 port (the reference-checked, differentiable one) untouched."""
+leaving the float32 port (the reference-checked, differentiable one) untouched. The tests that run bf16
+need a CPU with oneDNN's bf16 kernels; building the copy, and choosing it, are checked on any CPU."""
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from avsim.perception.coco.infer import CocoRunner
 from avsim.perception.factory import build_frame_detector
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.sensors.regions import STUDY_REGIONS_PX
+from helpers import needs_bf16
 
 # The largest deviations of bf16 from fp32 measured on 3000 make-data frames (docs/perception.md, "COCO CenterNet";
 # `python -m avsim.perception.coco.realism --modes upscale --precisions fp32,bf16`), between each fp32
@@ -27,10 +29,20 @@ OTHER_SCORE_TOL = 0.15
 
 
 @pytest.fixture(scope="module")
-def models():
+def fp32_model():
     torch.set_num_threads(1)
-    fp32 = load_centernet()
-    return fp32, Bf16CenterNet(fp32)
+    return load_centernet()
+
+
+@pytest.fixture
+def with_bf16(monkeypatch):
+    """The CPU check says yes: the bf16 copy can be built (not run fast) on any CPU."""
+    monkeypatch.setattr(torch.ops.mkldnn, "_is_mkldnn_bf16_supported", lambda: True)
+
+
+@pytest.fixture(scope="module")
+def models(fp32_model):
+    return fp32_model, Bf16CenterNet(fp32_model)
 
 
 @pytest.fixture(scope="module")
@@ -59,6 +71,7 @@ def _stop_signs(runner: CocoRunner, frame: np.ndarray, camera: str) -> np.ndarra
     return np.array([[d.confidence, *d.box_xyxy_px] for d in found]).reshape(-1, 5)
 
 
+@needs_bf16
 def test_bf16_stays_within_the_measured_deviation_of_fp32_on_real_renders(models, renders):
     fp32, bf16 = (CocoRunner(model, "upscale", 2.0, 0.1) for model in models)
     signs = 0
@@ -77,6 +90,7 @@ def test_bf16_stays_within_the_measured_deviation_of_fp32_on_real_renders(models
     assert signs >= 9  # the sign, in most of the 12 frames
 
 
+@needs_bf16
 def test_bf16_is_deterministic(models, renders):
     _, bf16 = models
     runner = CocoRunner(bf16, "upscale", 2.0, 0.1)
@@ -87,8 +101,8 @@ def test_bf16_is_deterministic(models, renders):
         assert first == rebuilt.detect(frame, camera, region_px=(288, 0, 640, 256)), name
 
 
-def test_building_bf16_leaves_the_float32_port_as_it_was(models):
-    fp32, bf16 = models
+def test_building_bf16_leaves_the_float32_port_as_it_was(fp32_model, with_bf16):
+    fp32, bf16 = fp32_model, Bf16CenterNet(fp32_model)
     assert all(p.dtype == torch.float32 for p in fp32.parameters())
     assert fp32.network.nodes[fp32.network.producer_index(HEATMAP_NAME)].activation == "Sigmoid"
     assert bf16.network.nodes[bf16.network.producer_index(HEATMAP_NAME)].activation is None  # it decodes logits
@@ -99,12 +113,20 @@ def test_building_bf16_leaves_the_float32_port_as_it_was(models):
     assert all(p.dtype == torch.bfloat16 for p in bf16.parameters() if id(p) not in kept)
 
 
-def test_the_config_chooses_the_precision():
-    assert isinstance(build_frame_detector(PerceptionConfig(kind="coco", coco_precision="bf16")).model, Bf16CenterNet)
-    assert not isinstance(build_frame_detector(PerceptionConfig(kind="coco", coco_precision="fp32")).model, Bf16CenterNet)
+@pytest.mark.parametrize("cpu_runs_bf16", [True, False])
+def test_the_config_chooses_the_precision_and_auto_follows_the_cpu(monkeypatch, cpu_runs_bf16):
+    monkeypatch.setattr(torch.ops.mkldnn, "_is_mkldnn_bf16_supported", lambda: cpu_runs_bf16)
+    built = {precision: isinstance(build_frame_detector(PerceptionConfig(kind="coco", coco_precision=precision)).model,
+                                   Bf16CenterNet) for precision in ("auto", "fp32")}
+    assert built == {"auto": cpu_runs_bf16, "fp32": False}
+    assert PerceptionConfig().coco_precision == "auto"  # the default runs on every CPU
+    if cpu_runs_bf16:
+        assert isinstance(build_frame_detector(PerceptionConfig(kind="coco", coco_precision="bf16")).model, Bf16CenterNet)
 
 
-def test_a_cpu_without_bf16_is_told_to_use_fp32(models, monkeypatch):
+def test_a_cpu_without_bf16_is_told_to_use_auto_or_fp32(fp32_model, monkeypatch):
     monkeypatch.setattr(torch.ops.mkldnn, "_is_mkldnn_bf16_supported", lambda: False)
-    with pytest.raises(ConfigError, match="set perception.coco_precision=fp32"):
-        Bf16CenterNet(models[0])
+    with pytest.raises(ConfigError, match="set perception.coco_precision=auto or fp32$"):
+        Bf16CenterNet(fp32_model)
+    with pytest.raises(ConfigError, match="set perception.coco_precision=auto or fp32$"):
+        build_frame_detector(PerceptionConfig(kind="coco", coco_precision="bf16"))

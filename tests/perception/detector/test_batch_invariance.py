@@ -12,6 +12,7 @@ from avsim.config import SimConfig
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.weights import resolve_weights_path
 from avsim.sensors.regions import STUDY_REGIONS_PX
+from helpers import needs_bf16
 
 FRONT_ROI = STUDY_REGIONS_PX["front"]
 
@@ -21,7 +22,7 @@ def frames():
     return _approach_frames(SimConfig(), count=8)
 
 
-@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+@pytest.mark.parametrize("precision", ["fp32", pytest.param("bf16", marks=needs_bf16)])
 def test_every_batch_size_gives_each_frame_its_lone_detections(frames, precision):
     runner = SignDetectorRunner(resolve_weights_path(""), conf_threshold=0.05, num_threads=1, precision=precision)
     alone = [runner.detect(frame, "front", region_px=FRONT_ROI) for frame in frames]
@@ -34,6 +35,7 @@ def test_every_batch_size_gives_each_frame_its_lone_detections(frames, precision
     assert mixed == [runner.detect(frames[0], "front"), alone[1], runner.detect(frames[2], "side")]
 
 
+@needs_bf16
 def test_bf16_moves_scores_by_rounding_only(frames):
     fp32 = SignDetectorRunner(resolve_weights_path(""), conf_threshold=0.3, num_threads=1)
     bf16 = SignDetectorRunner(resolve_weights_path(""), conf_threshold=0.3, num_threads=1, precision="bf16")

@@ -16,6 +16,7 @@ from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 from avsim.sensors.regions import deployed_region_px
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from helpers import needs_bf16
 
 THRESHOLD = 0.5
 FAR_M, NEAR_M = 110.0, 12.0
@@ -82,7 +83,7 @@ def test_a_frame_without_a_region_is_searched_whole_at_its_own_pixels(runners, a
     assert whole and max(whole) == pytest.approx(max(_stop_scores(runners[True].detect(far, "front", region_px=region))), abs=0.05)
 
 
-@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+@pytest.mark.parametrize("precision", ["fp32", pytest.param("bf16", marks=needs_bf16)])
 def test_the_batch_gives_each_frame_what_it_gets_alone(precision, automotive):
     frames, region = automotive
     for native in (False, True):

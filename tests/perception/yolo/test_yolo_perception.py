@@ -16,6 +16,7 @@ from avsim.perception.yolo import fetch
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import TOWNS
 from avsim.sensors.regions import STUDY_REGIONS_PX
+from helpers import needs_bf16
 
 THRESHOLD = SimConfig().policy.conf_threshold
 
@@ -72,6 +73,7 @@ def test_every_input_mode_finds_the_sign_at_10_m_and_reports_only_boxes_centred_
     assert [d.confidence for d in found] == sorted((d.confidence for d in found), reverse=True)
 
 
+@needs_bf16
 def test_bf16_finds_the_same_sign_with_a_close_score():
     frame, truth = _frame_and_truth(15.0)
     scores = {}
