@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from avsim.config import SimConfig, with_overrides
 from avsim.metrics import RunResult
-from avsim.perception.cpu_bf16 import arithmetic
-from avsim.perception.factory import perception_keys
+from avsim.perception.factory import network_arithmetics
 
 # What each outcome adds after its own word, the JSON's `outcome` (one entry per ALL_OUTCOMES).
 _OUTCOME_DETAIL = {
@@ -35,18 +34,11 @@ def _dist(value: float | None, what: str) -> str:
     return f"{value:.1f} m before the sign" if value is not None else f"never ({what})"
 
 
-# The networks whose arithmetic is a setting, by the key that sets it.
-_PRECISION_KEYS = {"detector": "detector_precision", "coco": "coco_precision", "yolo": "yolo_precision"}
-
-
 def _perception(perception: dict) -> str:
     """The perception's kind, with the arithmetic each network that has one ran in, e.g. "detector (bf16)",
     "coco (fp32)" or "ensemble (detector bf16, coco bf16)"."""
-    # A network runs exactly where its precision key is read (an ensemble's members too).
     config = with_overrides(SimConfig(), {"perception": perception}).perception
-    read = perception_keys(config)
-    ran = {network: arithmetic(getattr(config, key), f"perception.{key}")
-           for network, key in _PRECISION_KEYS.items() if key in read}
+    ran = network_arithmetics(config)
     if not ran:
         return config.kind
     if list(ran) == [config.kind]:

@@ -261,3 +261,26 @@ def test_module_entry_points_refuse_bad_numbers_in_one_line(module, argv, mentio
     err = capsys.readouterr().err
     assert status == 2 and 1 <= len(err.splitlines()) <= 2 and mention in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+# ---- a network arithmetic this CPU cannot run ------------------------------------------------------
+
+BF16_ON_A_CPU_WITHOUT_IT = {
+    "run --set perception.coco_precision=bf16": Case(
+        ["run", "--perception", "coco", "--set", "perception.coco_precision=bf16"], "set perception.coco_precision=auto or fp32"),
+    "reproduce: an experiment file's yolo_precision = bf16": Case(
+        ["reproduce", "--experiments", "{tmp}/e.toml", "--out", "{tmp}/out"], "set perception.yolo_precision=auto or fp32",
+        files={"e.toml": 'seeds = 1\n[defaults]\nperception = { kind = "yolo", yolo_precision = "bf16" }\n'
+                         '[[cells]]\nname = "a"\n'}),
+    "sweep: a grid point's detector_precision = bf16": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "set perception.detector_precision=auto or fp32",
+        files={"s.toml": 'seeds = 1\n[defaults]\nperception = { kind = "detector" }\n'
+                         '[grid]\n"perception.detector_precision" = ["fp32", "bf16"]\n'}),
+}
+
+
+@pytest.mark.parametrize("case", list(BF16_ON_A_CPU_WITHOUT_IT.values()), ids=list(BF16_ON_A_CPU_WITHOUT_IT))
+def test_bf16_on_a_cpu_without_its_kernels_is_refused_before_the_first_run(case, tmp_path, capsys, monkeypatch, no_work):
+    # "auto" runs fp32 on such a CPU (an AVX2 one); an explicit "bf16" would run through slow reference code.
+    monkeypatch.setattr("torch.ops.mkldnn._is_mkldnn_bf16_supported", lambda: False)
+    _run_case(case, tmp_path, capsys, monkeypatch)

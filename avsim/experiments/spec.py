@@ -265,10 +265,11 @@ def parse_vary(raw: Any) -> tuple[tuple[str, float, float], ...]:
 
 
 def check_registry_names(config: SimConfig) -> None:
-    """Fail on an unknown town, placement, policy or perception, as the run would later."""
+    """Fail on an unknown town, placement, policy or perception, as the run would later, and on a
+    network arithmetic this CPU cannot run (bf16 without oneDNN's bf16 kernels)."""
     # Imported here: the registries pull in the world, control and perception packages.
     from avsim.control.policies import POLICIES
-    from avsim.perception.factory import PERCEPTIONS
+    from avsim.perception.factory import PERCEPTIONS, network_arithmetics
     from avsim.plausibility import check_meaningful
     from avsim.world.towns import PLACEMENTS, TOWNS
 
@@ -281,6 +282,7 @@ def check_registry_names(config: SimConfig) -> None:
                 registry.get(name)
             except ConfigError as exc:
                 raise ConfigError(f"{key}: {exc}") from None
+    network_arithmetics(config.perception)
     check_meaningful(config)
 
 

@@ -194,6 +194,21 @@ def perception_keys(config: PerceptionConfig) -> frozenset[str]:
     return frozenset(keys)
 
 
+# The networks whose arithmetic is a setting, by the key that sets it.
+PRECISION_KEYS = {"detector": "detector_precision", "coco": "coco_precision", "yolo": "yolo_precision"}
+
+
+def network_arithmetics(config: PerceptionConfig) -> dict[str, str]:
+    """What each network of `config` that has an arithmetic setting runs as on this CPU, "fp32" or "bf16", by
+    network ({"detector": "bf16"}; {} for the oracle). "bf16" on a CPU without bf16 kernels is a one-line
+    ConfigError naming the key, so that a batch can refuse it before its first run."""
+    from avsim.perception.cpu_bf16 import arithmetic  # imports torch: only where a network is asked about
+
+    read = perception_keys(config)
+    return {network: arithmetic(getattr(config, key), f"perception.{key}")
+            for network, key in PRECISION_KEYS.items() if key in read}
+
+
 PERCEPTIONS.add("detector", _frame_perception)
 PERCEPTIONS.add("coco", _frame_perception)
 PERCEPTIONS.add("yolo", _frame_perception)
