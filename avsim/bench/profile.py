@@ -27,9 +27,8 @@ ONE_RUN_TARGETS = {"town07, one camera": 5.0, "town10, one camera": 3.0, "town07
 
 def _config(town: str, policy: str, perception: str, precision: str) -> SimConfig:
     """The study's run in `town` under `policy`, with `perception` ("detector" or "coco") at `precision`."""
-    key = "detector_precision" if perception == "detector" else f"{perception}_precision"
     return with_overrides(SimConfig(), {"scenario": {"town": town}, "policy": {"name": policy},
-                                        "perception": {"kind": perception, key: precision}})
+                                        "perception": {"kind": perception, f"{perception}_precision": precision}})
 
 
 def _print_stages(label: str, config: SimConfig, rrd: bool = False) -> float:
