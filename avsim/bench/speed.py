@@ -13,7 +13,8 @@ import mujoco
 from avsim.config import COCO_INPUTS, SimConfig, with_overrides
 from avsim.bench.gym_env import print_env_rows, print_vector_rows
 from avsim.loop import ClosedLoop
-from avsim.perception.cpu_bf16 import arithmetic, arithmetics_here
+from avsim.perception.cpu_bf16 import arithmetics_here
+from avsim.perception.factory import build_frame_detector, network_arithmetic
 from avsim.runner import run_config
 from avsim.sensors.regions import regions_px
 from avsim.vehicle.physics import FRONT_BUMPER_X_M, Controls
@@ -84,8 +85,6 @@ def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str, precision: str
     """Median and 90th-percentile COCO CenterNet time [ms] per front-camera frame at perception.threads,
     as deployed: input preparation by `mode`, the network at `precision`, decoding, mapping and NMS
     (rendering excluded)."""
-    from avsim.perception.factory import build_frame_detector
-
     detector = build_frame_detector(with_overrides(config.perception, {"kind": "coco", "coco_input": mode,
                                                                         "coco_precision": precision}))
     return _ms_per_frame(detector, _approach_frames(config), frames, regions_px(config.perception, config.camera)["front"])
@@ -94,9 +93,7 @@ def _coco_ms_per_frame(config: SimConfig, frames: int, mode: str, precision: str
 def _yolo_rows(config: SimConfig, frames: int) -> None:
     """YOLOv3-tiny (--perception yolo) per front-camera frame at perception.threads, at each input and
     precision, as deployed: input, network, decoding, mapping and NMS (rendering excluded)."""
-    from avsim.perception.factory import build_frame_detector
-
-    default = (config.perception.yolo_input, arithmetic(config.perception.yolo_precision, "perception.yolo_precision"))
+    default = (config.perception.yolo_input, network_arithmetic(config.perception, "yolo"))
     for yolo_input in COCO_INPUTS:
         for yolo_precision in arithmetics_here():
             detector = build_frame_detector(with_overrides(config.perception, {"kind": "yolo", "yolo_input": yolo_input,
@@ -191,7 +188,7 @@ def run_benchmarks(quick: bool = False) -> None:
                       "detector", ("town07",), "the same run without anti-lock brakes or traction control",
                       (("one camera, 2 threads, no ABS/TCS", "baseline"),))
     # The COCO CenterNet (--perception coco), at perception.threads (1) on the front region of interest.
-    mode, precision = base.perception.coco_input, arithmetic(base.perception.coco_precision, "perception.coco_precision")
+    mode, precision = base.perception.coco_input, network_arithmetic(base.perception, "coco")
     settings = [(mode, p) for p in (precision, *(p for p in arithmetics_here() if p != precision))]
     settings += [(m, precision) for m in COCO_INPUTS if m != mode]
     for coco_input, coco_precision in settings:

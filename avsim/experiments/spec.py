@@ -282,7 +282,7 @@ def check_registry_names(config: SimConfig) -> None:
                 registry.get(name)
             except ConfigError as exc:
                 raise ConfigError(f"{key}: {exc}") from None
-    network_arithmetics(config.perception)
+    network_arithmetics(config.perception)  # refuses bf16 where this CPU has no bf16 kernels
     check_meaningful(config)
 
 

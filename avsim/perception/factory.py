@@ -53,6 +53,7 @@ def _coco_frames(config: PerceptionConfig) -> "FrameDetector":
 
     torch.set_num_threads(config.threads)
     model = load_centernet()
+    # The key is read by name, not through network_arithmetic, so that the key-owner test sees what this reads.
     if arithmetic(config.coco_precision, "perception.coco_precision") == "bf16":
         model = Bf16CenterNet(model)
     return CocoRunner(model, config.coco_input, config.coco_upscale, config.min_confidence)
@@ -69,7 +70,7 @@ def _yolo_frames(config: PerceptionConfig) -> "FrameDetector":
 
     torch.set_num_threads(config.threads)
     model = load_yolo(config.yolo_cfg or None, config.yolo_weights or None, config.yolo_names or None)
-    bf16 = arithmetic(config.yolo_precision, "perception.yolo_precision") == "bf16"
+    bf16 = arithmetic(config.yolo_precision, "perception.yolo_precision") == "bf16"  # read by name, as for coco
     return YoloRunner(Bf16Yolo(model) if bf16 else model, config.yolo_input,
                       config.yolo_upscale, config.min_confidence)
 
@@ -198,15 +199,20 @@ def perception_keys(config: PerceptionConfig) -> frozenset[str]:
 PRECISION_KEYS = {"detector": "detector_precision", "coco": "coco_precision", "yolo": "yolo_precision"}
 
 
-def network_arithmetics(config: PerceptionConfig) -> dict[str, str]:
-    """What each network of `config` that has an arithmetic setting runs as on this CPU, "fp32" or "bf16", by
-    network ({"detector": "bf16"}; {} for the oracle). "bf16" on a CPU without bf16 kernels is a one-line
-    ConfigError naming the key, so that a batch can refuse it before its first run."""
+def network_arithmetic(config: PerceptionConfig, network: str) -> str:
+    """What `network` (a key of PRECISION_KEYS) runs as on this CPU under `config`, "fp32" or "bf16"; "bf16" on
+    a CPU without bf16 kernels is a one-line ConfigError naming the key."""
     from avsim.perception.cpu_bf16 import arithmetic  # imports torch: only where a network is asked about
 
+    key = PRECISION_KEYS[network]
+    return arithmetic(getattr(config, key), f"perception.{key}")
+
+
+def network_arithmetics(config: PerceptionConfig) -> dict[str, str]:
+    """`network_arithmetic` of each network of `config` that has an arithmetic setting, by network
+    ({"detector": "bf16"}; {} for the oracle), so that a batch can refuse bf16 before its first run."""
     read = perception_keys(config)
-    return {network: arithmetic(getattr(config, key), f"perception.{key}")
-            for network, key in PRECISION_KEYS.items() if key in read}
+    return {network: network_arithmetic(config, network) for network, key in PRECISION_KEYS.items() if key in read}
 
 
 PERCEPTIONS.add("detector", _frame_perception)
