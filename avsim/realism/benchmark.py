@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from avsim.realism.frame_set import DEFAULT_MAX_DIST_M, SceneDraw, render_scene, scene_draws
 from avsim.realism.scoring import build_networks, score_frame
 from avsim.realism.settings import RenderSetting
+from avsim.sensors.gl import check_offscreen_rendering
 from avsim.workers import init_worker, terminate_workers
 
 _WORKER: dict = {}
@@ -62,6 +63,7 @@ def run_benchmark(plan: BenchmarkPlan, workers: int) -> list[dict]:
     """Every job's rows, in job order, with a progress bar."""
     from tqdm import tqdm
 
+    check_offscreen_rendering()  # no EGL: one line, before the progress bar and the workers
     jobs = [(setting, scene, plan.threshold, plan.max_dist_m) for setting, scene in plan.jobs()]
     rows: list[dict] = []
     # Built here first, whatever the workers: missing or corrupt weights are refused in one line

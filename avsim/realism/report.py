@@ -14,6 +14,7 @@ import numpy as np
 
 from avsim.perception.ap import average_precision
 from avsim.realism.frame_set import BIN_WIDTH_M, DEFAULT_MAX_DIST_M, bin_edges_m
+from avsim.realism.scoring import FALSE_ON, FALSE_SIGN_COVER
 from avsim.realism.settings import NETWORKS, SETTINGS
 from avsim.stats import rate_with_interval, sign_test_p, wilson_interval
 
@@ -81,9 +82,11 @@ def recall_table(rows: list[dict], network: str, camera: str, key: str = "found"
 
 
 def false_stop_table(rows: list[dict]) -> list[str]:
-    """Per network and setting: false stop signs per frame per town, and what they sit on."""
+    """Per network and setting: false stop signs per frame per town, what they sit on, and how many of
+    them cover part of a labelled stop sign (a box displaced from the sign, not one apart from it)."""
     towns = sorted({r["town"] for r in rows})
-    lines = ["| network | setting | " + " | ".join(towns) + " | all | sits on |", "|---|---|" + "---|" * (len(towns) + 2)]
+    lines = ["| network | setting | " + " | ".join(towns) + " | all | sits on | over a sign |",
+             "|---|---|" + "---|" * (len(towns) + 3)]
     for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
         for setting in _ordered({r["setting"] for r in rows}, list(SETTINGS)):
             mine = [r for r in rows if r["network"] == network and r["setting"] == setting]
@@ -92,9 +95,12 @@ def false_stop_table(rows: list[dict]) -> list[str]:
                 frames = [r for r in mine if town in (r["town"], "all")]
                 count = sum(len(r["false_stop_signs"]) for r in frames)
                 cells.append(f"{count / len(frames):.3f} ({count}/{len(frames)})" if frames else "–")
-            on = Counter(f[-1] for r in mine for f in r["false_stop_signs"])
+            false = [f for r in mine for f in r["false_stop_signs"]]
+            on = Counter(f[FALSE_ON] for f in false)
+            over_sign = sum(f[FALSE_SIGN_COVER] > 0 for f in false)
             lines.append(f"| {network} | {setting} | " + " | ".join(cells) + " | "
-                         + (", ".join(f"{name} {n}" for name, n in on.most_common(4)) or "–") + " |")
+                         + (", ".join(f"{name} {n}" for name, n in on.most_common(4)) or "–")
+                         + (f" | {over_sign} of {len(false)} |" if false else " | – |"))
     return lines
 
 
@@ -207,7 +213,9 @@ def report(rows: list[dict], threshold: float) -> str:
              f"Threshold {threshold}. Recall cells: signs found / signs in view (95 % Wilson interval); found = a "
              "`stop_sign` detection at or above the threshold overlapping the labelled sign with IoU >= 0.5. "
              "False stop signs: detections at or above the threshold centred on no labelled stop sign, on every frame "
-             "(sign views and roadside views). Render CPU time includes Mesa's GL threads.", "",
+             "(sign views and roadside views); \"over a sign\": those whose box covers part of a labelled stop sign, a box "
+             "displaced from the sign onto what stands beside it rather than one apart from every sign. Render CPU time "
+             "includes Mesa's GL threads.", "",
              "## Render settings and their cost", "", *cost_table(rows), "",
              "## Summary: recall pooled over towns (IoU >= 0.5), false stop signs, AP", "", *summary_table(rows), "",
              *_paired_section(rows),

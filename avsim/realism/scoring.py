@@ -7,7 +7,9 @@ At the threshold (the braking threshold, 0.5):
 - **found_centred**: one is centred inside the labelled box (YOLOv3-tiny often boxes only the legend);
 - **false stop signs**: detections centred on no labelled stop sign, each with the geom it sits on
   (the most common geom in the middle ninth of its box, from a segmentation render; "sky" where no
-  geom is), named without the numbers of repeated props ("tree_right/crown", "bldg_left/roof").
+  geom is), named without the numbers of repeated props ("tree_right/crown", "bldg_left/roof"), and
+  how much of a labelled stop sign its box covers (0: apart from every sign; above 0: a box displaced
+  from the sign onto what stands beside it, which still ranges the sign wrongly).
 Every stop-sign detection at or above min_confidence, with whether it matches (IoU >= 0.5), is kept
 for the stop sign's AP over the whole set.
 """
@@ -20,12 +22,16 @@ import mujoco
 import numpy as np
 
 from avsim.config import PerceptionConfig
-from avsim.perception.ap import match_detections
+from avsim.perception.ap import box_areas, box_intersections, match_detections
 from avsim.realism.frame_set import Frame
 from avsim.sensors.camera import CameraRig
 from avsim.sensors.regions import deployed_region_px
 
 _COPY_NUMBER = re.compile(r"_?-?\d+")
+
+# A false stop sign's row: score, x0, y0, x1, y1 [px], the geom it sits on, the fraction of a labelled
+# stop sign its box covers (`sign_cover`). The positions of the last two:
+FALSE_ON, FALSE_SIGN_COVER = 5, 6
 
 
 def build_networks(names: tuple[str, ...]) -> dict[str, object]:
@@ -61,6 +67,14 @@ def geom_under_box(model: mujoco.MjModel, ids: np.ndarray, image_height_px: int,
     return geom_label(model, int(values[np.argmax(counts)])) if values.size else "outside"
 
 
+def sign_cover(box_xyxy_px, truth: np.ndarray) -> float:
+    """The largest fraction of a labelled sign's area (truth: (N, 4) xyxy [px]) that the box covers;
+    0.0 where it touches none."""
+    if not len(truth):
+        return 0.0
+    return float(np.max(box_intersections(box_xyxy_px, truth)[0] / np.maximum(box_areas(truth), 1e-9)))
+
+
 def _centred(boxes: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """(D,) whether each box's centre lies inside any of the (N, 4) truth boxes."""
     if not len(boxes) or not len(truth):
@@ -87,7 +101,7 @@ def score_frame(frame: Frame, detector: object, threshold: float, model: mujoco.
         if "ids" not in segmentation:
             segmentation["ids"] = rig.render_segmentation(data, frame.camera)
         on = geom_under_box(model, segmentation["ids"], frame.image.shape[0], box)
-        false_rows.append([round(float(score), 4), *[round(float(v), 1) for v in box], on])
+        false_rows.append([round(float(score), 4), *[round(float(v), 1) for v in box], on, round(sign_cover(box, truth), 3)])
     return {
         "found": bool(matched_at_threshold.any()),
         "found_centred": bool((counted & _centred(boxes, truth)).any()),

@@ -44,6 +44,12 @@ EXTENT_M = 100.0
 SUN_SHADOW_HALF_WIDTH_M = 60.0
 SUN_SHADOW_AIM_AHEAD_M = 50.0
 SUN_SHADOW_DISTANCE_M = 300.0
+# Tessellation of MuJoCo's curved geoms (tree crowns and trunks, posts, wheels): slices around, stacks
+# from pole to pole, against MuJoCo's default 28 and 16. Software rasterisers are vertex-bound on our
+# scenes, and these coarser ones save about a third of a frame. A crown is then a 12-sided outline;
+# drawing it smooth did not change the COCO networks' false stop signs on it (docs/realism.md,
+# "Not the crowns' facets").
+CURVE_SLICES, CURVE_STACKS = 12, 6
 
 
 @dataclass(frozen=True)
@@ -176,10 +182,8 @@ def _set_options(spec: mujoco.MjSpec, config: SimConfig) -> None:
     if config.scenario.sun_shadow_map_px:
         spec.visual.quality.shadowsize = config.scenario.sun_shadow_map_px
         spec.visual.map.shadowclip = SUN_SHADOW_HALF_WIDTH_M / EXTENT_M
-    # Software rasterisers are vertex-bound on our scenes: coarser spheres and
-    # cylinders (trees, posts) cost little in looks and save about a third of a frame.
-    spec.visual.quality.numslices = 12
-    spec.visual.quality.numstacks = 6
+    spec.visual.quality.numslices = CURVE_SLICES
+    spec.visual.quality.numstacks = CURVE_STACKS
     cam = config.camera
     spec.visual.global_.offwidth = cam.width_px * max(cam.seg_supersample, cam.supersample)
     spec.visual.global_.offheight = cam.height_px * max(cam.seg_supersample, cam.supersample)

@@ -3,13 +3,20 @@
 import numpy as np
 import pytest
 
-from avsim.perception.ap import average_precision, box_iou, match_detections, mean_ap
+from avsim.perception.ap import average_precision, box_areas, box_intersections, box_iou, match_detections, mean_ap
 
 
 def test_iou_of_identical_disjoint_and_half_overlapping_boxes():
     a = np.array([[0, 0, 10, 10]], float)
     b = np.array([[0, 0, 10, 10], [20, 20, 30, 30], [5, 0, 15, 10]], float)
     assert box_iou(a, b)[0] == pytest.approx([1.0, 0.0, 50 / 150])
+
+
+def test_intersections_and_areas_of_boxes():
+    a = np.array([[0.0, 0.0, 4.0, 2.0]])
+    b = np.array([[2.0, 1.0, 6.0, 5.0], [4.0, 0.0, 8.0, 2.0]])
+    assert box_intersections(a, b).tolist() == [[2.0, 0.0]]  # 2 x 1 with the first; the second only touches
+    assert box_areas(b).tolist() == [16.0, 8.0]
 
 
 def test_ap_is_one_for_perfect_ranking_and_lower_when_a_false_positive_ranks_first():

@@ -29,17 +29,20 @@ def test_recall_cells_count_signs_per_bin_with_wilson_intervals():
     assert cells[1] == "–"
 
 
-def test_false_stop_signs_per_frame_name_what_they_sit_on():
-    rows = [_row(frame=0, false=[(0.8, 0, 0, 5, 5, "tree_right/crown"), (0.6, 0, 0, 5, 5, "tree_right/crown")]),
-            _row(frame=1, false=[(0.7, 0, 0, 5, 5, "sky")]), _row(frame=2), _row(frame=3, town="town10")]
-    line = next(line for line in false_stop_table(rows) if line.startswith("| coco | baseline"))
+def test_false_stop_signs_per_frame_name_what_they_sit_on_and_how_many_cover_a_sign():
+    rows = [_row(frame=0, false=[(0.8, 0, 0, 5, 5, "tree_right/crown", 0.2), (0.6, 0, 0, 5, 5, "tree_right/crown", 0.0)]),
+            _row(frame=1, false=[(0.7, 0, 0, 5, 5, "sky", 0.0)]), _row(frame=2), _row(frame=3, town="town10")]
+    table = false_stop_table(rows)
+    assert table[0].endswith("| sits on | over a sign |")
+    line = next(line for line in table if line.startswith("| coco | baseline"))
     assert "1.000 (3/3)" in line and "0.000 (0/1)" in line and "0.750 (3/4)" in line
-    assert line.endswith("tree_right/crown 2, sky 1 |")
+    assert line.endswith("tree_right/crown 2, sky 1 | 1 of 3 |")
+    assert next(line for line in false_stop_table([_row()]) if line.startswith("| coco")).endswith("| – | – |")
 
 
 def test_a_set_beyond_60_m_gets_its_own_bins_and_span():
     rows = [_row(dist_m=12.0, frame=0), _row(dist_m=57.0, frame=1), _row(dist_m=83.0, found=False, frame=2, detections=(),
-            false=[(0.5, 0, 0, 5, 5, "tree_right/crown"), (0.6, 0, 0, 5, 5, "tree_right/crown")]),
+            false=[(0.5, 0, 0, 5, 5, "tree_right/crown", 0.0), (0.6, 0, 0, 5, 5, "tree_right/crown", 0.0)]),
             _row(dist_m=None, frame=3, n_truth=0, detections=())]
     header = summary_table(rows)[0]
     assert "| front 10–40 m | front 40–60 m | front 60–85 m | side 10–40 m |" in header

@@ -1,9 +1,9 @@
-"""What a false stop sign sits on, named by kind."""
+"""What a false stop sign sits on, named by kind, and how much of a labelled sign its box covers."""
 
 import mujoco
 import numpy as np
 
-from avsim.realism.scoring import geom_label, geom_under_box
+from avsim.realism.scoring import geom_label, geom_under_box, sign_cover
 
 
 def _two_geom_model() -> mujoco.MjModel:
@@ -33,3 +33,12 @@ def test_geom_labels_drop_copy_numbers_and_fall_back_to_the_body():
     model = spec.compile()
     assert sorted(geom_label(model, g) for g in range(model.ngeom)) == ["bldg_left/roof", "tree_right", "tree_right/crown"]
     assert geom_label(model, -1) == "sky"
+
+
+def test_sign_cover_is_the_largest_fraction_of_a_labelled_sign_under_the_box():
+    signs = np.array([[10.0, 10.0, 20.0, 20.0], [100.0, 100.0, 140.0, 140.0]])
+    assert sign_cover((15, 10, 40, 30), signs) == 0.5  # half the first sign, beside it
+    assert sign_cover((0, 0, 200, 200), signs) == 1.0
+    assert sign_cover((120, 100, 200, 200), signs) == 0.5  # the second, whatever the first
+    assert sign_cover((20, 0, 30, 30), signs) == 0.0  # touching an edge covers nothing
+    assert sign_cover((0, 0, 5, 5), np.zeros((0, 4))) == 0.0  # no sign in view
