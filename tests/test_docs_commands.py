@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from avsim.cli import build_parser, main
+from avsim.cli import main
+from avsim.cli.command import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]

@@ -284,3 +284,74 @@ def test_bf16_on_a_cpu_without_its_kernels_is_refused_before_the_first_run(case,
     # "auto" runs fp32 on such a CPU (an AVX2 one); an explicit "bf16" would run through slow reference code.
     monkeypatch.setattr("torch.ops.mkldnn._is_mkldnn_bf16_supported", lambda: False)
     _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+# ---- no offscreen rendering, or weights that do not load, named by a batch file -------------------------
+
+NO_OFFSCREEN_RENDERING = {
+    "sweep": Case(["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "cannot start offscreen rendering",
+                  files={"s.toml": 'seeds = 1\n[grid]\n"policy.name" = ["baseline", "adjusted"]\n'}),
+    "reproduce": Case(["reproduce", "--experiments", "{tmp}/e.toml", "--out", "{tmp}/out"], "cannot start offscreen rendering",
+                      files={"e.toml": 'seeds = 1\n[[cells]]\nname = "a"\n'}),
+    "leaderboard --quick": Case(["leaderboard", "--quick", "--out", "{tmp}/out"], "cannot start offscreen rendering"),
+    "detector make-data": Case(["detector", "make-data", "--train", "2", "--val", "2", "--out", "{tmp}/data"],
+                               "cannot start offscreen rendering"),
+}
+
+
+@pytest.mark.parametrize("case", list(NO_OFFSCREEN_RENDERING.values()), ids=list(NO_OFFSCREEN_RENDERING))
+def test_a_machine_that_cannot_render_is_refused_before_a_batch_starts(case, tmp_path, capsys, monkeypatch, no_work):
+    # Before: every run of the batch failed in its worker, and a results folder of failures was left.
+    def no_egl(*args, **kwargs):
+        raise RuntimeError("Cannot initialize a EGL device display")
+
+    monkeypatch.setattr("avsim.sensors.gl.mujoco.GLContext", no_egl)
+    _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+_CORRUPT_WEIGHTS = b"not a torch file" * 64
+BAD_WEIGHTS_IN_A_BATCH_FILE = {
+    "sweep: corrupt weights in [defaults]": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "are corrupt",
+        files={"w.pt": _CORRUPT_WEIGHTS, "s.toml": 'seeds = 1\n[defaults]\nperception = { weights_path = "{tmp}/w.pt" }\n'
+                                                   '[grid]\n"policy.name" = ["baseline", "adjusted"]\n'}),
+    "sweep: missing weights on one grid point": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "missing",
+        files={"s.toml": 'seeds = 1\n[grid]\n"perception.weights_path" = ["", "{tmp}/none.pt"]\n'}),
+    "reproduce: corrupt weights in a cell": Case(
+        ["reproduce", "--experiments", "{tmp}/e.toml", "--out", "{tmp}/out"], "are corrupt",
+        files={"w.pt": _CORRUPT_WEIGHTS, "e.toml": 'seeds = 1\n[[cells]]\nname = "a"\n'
+                                                   '[[cells]]\nname = "b"\nperception = { weights_path = "{tmp}/w.pt" }\n'}),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_WEIGHTS_IN_A_BATCH_FILE.values()), ids=list(BAD_WEIGHTS_IN_A_BATCH_FILE))
+def test_weights_a_batch_file_names_are_loaded_before_its_first_run(case, tmp_path, capsys, monkeypatch, no_work):
+    # Before: the batch ran, every run with those weights failed, and a results folder of failures was left.
+    _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+# ---- found by an audit of every subcommand (2026-11-28) ----------------------------------------------------
+
+AUDIT_2026_11_28 = {
+    "attack eval --signs with an empty name": Case(["attack", "eval", "--signs", "clean,,yang", "--out", "{tmp}/out"],
+                                                   "has an empty name"),
+    "attack eval --signs ''": Case(["attack", "eval", "--signs", "", "--out", "{tmp}/out"], "expects comma-separated names"),
+    "attack eval: a corrupt texture after a good one": Case(
+        ["attack", "eval", "--signs", "clean,{tmp}/bad.png", "--drives", "0", "--out", "{tmp}/out"], "not a PNG file",
+        files={"bad.png": b"\x00garbage" * 32}),
+    "attack eval --detectors with an unknown name": Case(["attack", "eval", "--detectors", "detector,foo", "--out", "{tmp}/out"],
+                                                         "unknown name 'foo'"),
+    "attack generate --cameras with an empty name": Case(
+        ["attack", "generate", "--method", "yang", "--cameras", "front,,side", "--out", "{tmp}/a.png"], "has an empty name"),
+    "attack generate --weights against a target without the own detector": Case(
+        ["attack", "generate", "--method", "yang", "--detector", "coco", "--weights", "{tmp}/w.pt", "--out", "{tmp}/a.png"],
+        "does not run it", files={"w.pt": b"weights"}),
+    "replay of a file that is no bag": Case(["replay", "{tmp}/image.png"], "cannot read bag",
+                                            files={"image.png": b"\x89PNG\r\n\x1a\n" + b"\x00" * 32}),
+}
+
+
+@pytest.mark.parametrize("case", list(AUDIT_2026_11_28.values()), ids=list(AUDIT_2026_11_28))
+def test_what_an_audit_found_is_refused_before_the_work(case, tmp_path, capsys, monkeypatch, no_work):
+    _run_case(case, tmp_path, capsys, monkeypatch)

@@ -17,7 +17,7 @@ from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output
 from avsim.outputs import FILE, FOLDER, add_input_argument, add_output_argument
 from avsim.realism.settings import SETTINGS
-from avsim.validation import config_flag, number_flag, number_list_flag
+from avsim.validation import config_flag, name_list_flag, number_flag, number_list_flag
 
 STEPS_FLAG = number_flag(1, 100_000, integer=True)
 # The perceptions `attack eval --detectors` measures a texture under: the networks that look at pixels.
@@ -27,7 +27,7 @@ EVAL_DETECTORS = ("detector", "coco", "yolo", "nanodet")
 def _cmd_attack_generate(args: argparse.Namespace) -> int:
     from avsim.attacks.generate import (check_hyperparameters, check_ssim_floor, default_bank, generate, generate_from,
                                         prepare, purify_keys, read_recipe)
-    from avsim.attacks.targets import TARGET_NAMES
+    from avsim.attacks.targets import TARGET_MEMBERS, TARGET_NAMES
 
     if args.from_json:
         # Everything comes from the record; flags that would change the texture are refused.
@@ -51,11 +51,14 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
         detector = args.detector or "detector"
         if detector not in TARGET_NAMES:
             raise ConfigError(f"--detector must be one of {', '.join(TARGET_NAMES)}, got '{detector}'")
+        if args.weights and "detector" not in TARGET_MEMBERS[detector]:
+            raise ConfigError(f"--weights sets the own detector's weights, and --detector {detector} does not run it; "
+                              "drop --weights, or attack a target that holds the own detector")
         ssim_floor = args.ssim_floor  # None: the method's own floor, or 0.7
         if ssim_floor is not None:
             check_ssim_floor(ssim_floor)
         # The spec checks the camera names, so a bad one fails before anything is rendered.
-        cameras = tuple(c.strip() for c in (args.cameras or "front").split(",") if c.strip())
+        cameras = tuple(args.cameras or ("front",))
         bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
         purify = purify_keys(args.purify or "none")
         _, record = generate(args.method, args.out, seed=seed,
@@ -73,18 +76,13 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     from avsim.experiments.attacks.texture_eval_report import write_attack_report
     from avsim.config import SimConfig, with_overrides
     from avsim.world.scene import resolve_sign_texture
-    from avsim.world.textures import TEXTURE_DIR
+    from avsim.world.textures import TEXTURE_DIR, load_texture_png
 
-    signs = [s.strip() for s in args.signs.split(",") if s.strip()]
-    for sign in signs:
-        resolve_sign_texture(sign)  # fail on a bad name before rendering anything
-    detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
-    unknown = [d for d in detectors if d not in EVAL_DETECTORS]
-    if unknown or not detectors:
-        raise ConfigError(f"--detectors takes {', '.join(EVAL_DETECTORS)}, comma-separated; got '{args.detectors}'")
+    signs, detectors, placements = args.signs, args.detectors, tuple(args.placements)  # name lists (name_list_flag)
+    for sign in signs:  # every texture decoded, as a scene will decode it, before the first is measured
+        load_texture_png(resolve_sign_texture(sign), expected_aspect=1.0)
     from avsim.world.towns import PLACEMENTS, TOWNS
 
-    placements = tuple(p.strip() for p in args.placements.split(","))
     # Every name of the plan is checked before the first render.
     TOWNS.get(args.town)
     for placement in (*placements, args.drive_placement):
@@ -157,7 +155,7 @@ def add_commands(sub) -> None:
     add_input_argument(gen, "--weights", default="", help="detector weights (default: the shipped ones)")
     gen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="a method hyperparameter, e.g. --set eps=0.1 (repeatable)")
-    gen.add_argument("--cameras",
+    gen.add_argument("--cameras", type=name_list_flag(),
                      help="comma-separated cameras whose views the texture is optimised over: front, side "
                           "(default front; front,side is the adaptive attacker against the side-camera defence)")
     gen.add_argument("--ssim-floor", type=number_flag(0, 1, lo_open=True, hi_open=True),
@@ -173,11 +171,13 @@ def add_commands(sub) -> None:
                      help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
     gen.set_defaults(func=_cmd_attack_generate)
     ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
-    ev.add_argument("--signs", default="clean,chen,eykholt,lu_v2,lu_v3,yang", help="comma-separated --sign values")
+    ev.add_argument("--signs", type=name_list_flag(), default=["clean", "chen", "eykholt", "lu_v2", "lu_v3", "yang"],
+                    help="comma-separated --sign values (default clean,chen,eykholt,lu_v2,lu_v3,yang)")
     ev.add_argument("--town", default="town07")
-    ev.add_argument("--placements", default="near,standard,far",
-                    help="placements of the fixed-distance tables (under the first of --detectors)")
-    ev.add_argument("--detectors", default="detector",
+    ev.add_argument("--placements", type=name_list_flag(), default=["near", "standard", "far"],
+                    help="comma-separated placements of the fixed-distance tables, under the first of --detectors "
+                         "(default near,standard,far)")
+    ev.add_argument("--detectors", type=name_list_flag(EVAL_DETECTORS), default=["detector"],
                     help="comma-separated perceptions the drive-bys are measured under: detector, coco, yolo, "
                          "nanodet (default detector)")
     ev.add_argument("--drives", type=number_flag(0, 10_000, integer=True), default=6,

@@ -1,7 +1,9 @@
 """Command-line entry point: `avsim run`, `avsim detect`, `avsim snapshot`, `avsim sweep`, ... (`avsim --help`).
 
 `main` is the one error boundary, and runs in this order for every subcommand:
-1. the renderer MUJOCO_GL names is checked (`avsim.sensors.gl_backend`), before MuJoCo is imported;
+1. the renderer MUJOCO_GL names was checked by `avsim.cli.main` before this module was imported
+   (importing it loads MuJoCo, which fails at import on a bad MUJOCO_GL); it is checked again here, for
+   callers of this `main`;
 2. every output path the subcommand declared (`avsim.outputs.add_output_argument`) is checked,
    before any work starts;
 3. the subcommand runs.

@@ -42,6 +42,7 @@ from avsim.errors import ConfigError
 from avsim.experiments.plan import Counted, Group, count_of, group_size, in_flight, lockstep_groups, specs_of
 from avsim.experiments.ray_backend import check_reachable, ray_results, require_ray
 from avsim.experiments.run_task import RunSpec, execute_group, worker_env
+from avsim.sensors.gl import check_offscreen_rendering
 from avsim.workers import DEFAULT_BATCH, init_worker, terminate_workers
 
 BACKENDS = ("local", "ray")
@@ -67,7 +68,8 @@ def resolve_workers(workers: int | None, address: str | None) -> int | None:
 
 def check_backend(backend: str, address: str | None = None) -> None:
     """Raise a one-line ConfigError for an unknown backend, an address without Ray, Ray not
-    installed, or no Ray cluster at the address."""
+    installed, or no Ray cluster at the address; a one-line RenderError where the runs would render
+    on this machine (no address) and it cannot render offscreen, which would fail every run."""
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
     if address is not None and backend != "ray":
@@ -76,6 +78,8 @@ def check_backend(backend: str, address: str | None = None) -> None:
         require_ray()
         if address is not None:
             check_reachable(address)
+    if address is None:  # worker processes, or a Ray cluster started here: they render with this machine's EGL
+        check_offscreen_rendering()
 
 
 def run_batch(specs: Iterable[RunSpec], *, workers: int | None = 1, root: str | os.PathLike | None = None,

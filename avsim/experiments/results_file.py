@@ -129,7 +129,9 @@ def _record_problem(record: Any) -> str | None:
 
 
 def _foreign(path: Path, why: str) -> ConfigError:
-    return ConfigError(f"{path} is not an avsim results file ({why}); choose another --out, or move the file away")
+    # Read as an input (--config, --resume) or appended to as an output (--out): the fix names both.
+    return ConfigError(f"{path} is not an avsim results file ({why}); to read runs, name a results.jsonl or runs.jsonl "
+                       "that avsim wrote; to write them, choose another --out or move the file away")
 
 
 def _with_current_outcome(record: dict[str, Any]) -> dict[str, Any]:

@@ -68,7 +68,7 @@ from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes,
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
 from avsim.experiments.run_task import RunSpec
-from avsim.experiments.spec import as_table, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
+from avsim.experiments.spec import as_table, check_networks, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
 
@@ -236,6 +236,7 @@ def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...
                 raise ConfigError(f"'{key}' values must be numbers, strings or booleans, got {value!r}")
             config = with_overrides(base, nested(key, value))  # unknown key, wrong type, out of range
             texture = check_run_names(config)
+            check_networks(config)
             held = _lookup(config, key)
             if held in checked:
                 raise ConfigError(f"'{key}' lists the value {value!r} twice")

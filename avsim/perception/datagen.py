@@ -44,6 +44,7 @@ from avsim.validation import check_ranges, ranged
 from avsim.outputs import write_image, write_text
 from avsim.perception.dataset_formats import FORMATS, SPLITS, write_labels
 from avsim.sensors.camera import CameraRig
+from avsim.sensors.gl import check_offscreen_rendering
 from avsim.vehicle.physics import Vehicle
 from avsim.workers import init_worker, terminate_workers
 from avsim.world import props
@@ -262,6 +263,7 @@ def make_dataset(out_dir: str | os.PathLike, config: DataGenConfig, overwrite: b
     out = Path(out_dir)
     if out.exists() and not overwrite:
         raise ConfigError(f"{out} already exists; choose another --out or pass --overwrite")
+    check_offscreen_rendering()  # no EGL: one line, before the progress bar and the workers
     partial = out.with_name(out.name + ".partial")
     shutil.rmtree(partial, ignore_errors=True)
     # A stop before the rename (Ctrl-C, SIGTERM, a worker that died, a full disk) leaves no half-made dataset.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import fields
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -118,6 +119,29 @@ def build_frame_detector(config: PerceptionConfig) -> "FrameDetector":
     detector = FRAME_DETECTORS.get(config.kind)(config)
     purifier = build_purifier(config)
     return detector if purifier is None else PurifiedDetector(detector, purifier)
+
+
+def network_files_key(config: PerceptionConfig) -> tuple:
+    """What decides whether a perception's networks can be built: its kind and every name, path and
+    mode it holds (weights files, precisions, input modes, ensemble members), not its numbers
+    (thresholds, upscales, threads), which a built network takes as they come."""
+    return (config.kind, *((f.name, getattr(config, f.name)) for f in fields(config)
+                           if isinstance(getattr(config, f.name), (str, tuple))))
+
+
+_NETWORKS_BUILT: set[tuple] = set()
+
+
+def check_networks_build(config: PerceptionConfig) -> None:
+    """Build the perception's networks and drop them, once per `network_files_key` in this process:
+    missing, corrupt or unfetched weights are then refused in one line (their own errors) before a
+    batch's first run, not in each of its runs. The oracle and `none` have no network."""
+    if config.kind in ("oracle", "none"):
+        return
+    key = network_files_key(config)
+    if key not in _NETWORKS_BUILT:
+        build_frame_detector(config)
+        _NETWORKS_BUILT.add(key)
 
 
 class FrameDetectorCache:

@@ -62,8 +62,8 @@ def replay(bag: str | os.PathLike, perception_overrides: Mapping[str, Any] | Non
     # rosbags' readers raise more than AnyReaderError on a cut or foreign file (its MCAP reader
     # reads past the end of a truncated one): only the bag's own reading is guarded by these.
     unreadable = (AnyReaderError, EOFError, IndexError, KeyError, TypeError, ValueError, struct.error)
-    reader = AnyReader([path], default_typestore=ros_types.typestore())
-    with _reading(path, unreadable):
+    with _reading(path, unreadable):  # a file of another kind (a .png) is refused by the constructor
+        reader = AnyReader([path], default_typestore=ros_types.typestore())
         reader.open()
     try:
         images = [c for c in reader.connections if c.msgtype == IMAGE_TYPE]

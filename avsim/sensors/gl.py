@@ -38,6 +38,28 @@ def context_with_framebuffer(model: mujoco.MjModel, width_px: int, height_px: in
         settings.offwidth, settings.offheight = shared_size
 
 
+def _cannot_render(exc: Exception) -> RenderError:
+    """The one-line error for a GL context that did not start; a Ctrl-C inside EGL's ctypes calls is
+    re-raised as what it is, not reported as a broken EGL."""
+    raise_if_interrupted(exc)
+    backend = os.environ.get("MUJOCO_GL", "egl")
+    detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return RenderError(f"cannot start offscreen rendering with MUJOCO_GL={backend} ({detail}); install Mesa's EGL "
+                       "(apt-get install libegl1 libgl1-mesa-dri) or run with MUJOCO_GL=osmesa (needs libosmesa6)")
+
+
+def check_offscreen_rendering() -> None:
+    """Start a 1x1 GL context and free it: a one-line RenderError where this process cannot render
+    offscreen (no EGL), so that the batch commands and the data generator refuse before their work,
+    not run by run."""
+    try:
+        context = mujoco.GLContext(1, 1)
+        context.make_current()
+        context.free()
+    except Exception as exc:  # the GL backends raise several unrelated types
+        raise _cannot_render(exc) from None
+
+
 class OffscreenRenderer:
     """Renders a model's fixed cameras to (H, W, 3) uint8 arrays, row 0 at the top.
 
@@ -54,13 +76,7 @@ class OffscreenRenderer:
             self._gl.make_current()
             self._con = context_with_framebuffer(model, width_px, height_px)
         except Exception as exc:  # the GL backends raise several unrelated types
-            raise_if_interrupted(exc)  # a Ctrl-C inside EGL's ctypes calls is no broken EGL
-            backend = os.environ.get("MUJOCO_GL", "egl")
-            detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise RenderError(
-                f"cannot start offscreen rendering with MUJOCO_GL={backend} ({detail}); install Mesa's EGL "
-                "(apt-get install libegl1 libgl1-mesa-dri) or run with MUJOCO_GL=osmesa (needs libosmesa6)"
-            ) from None
+            raise _cannot_render(exc) from None
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         self._model = model
         self._scene = mujoco.MjvScene(model, maxgeom=max_geom)

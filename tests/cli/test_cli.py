@@ -4,6 +4,7 @@ import pytest
 
 import avsim.loop
 from avsim import cli
+from avsim.cli import command
 from avsim.cli.flags import config_from_args
 
 
@@ -88,7 +89,7 @@ def test_snapshot_strip_puts_the_towns_front_cameras_side_by_side_at_half_size(t
 
 
 def test_set_overrides_flag_values():
-    args = cli.build_parser().parse_args(["run", "--speed-kmh", "50", "--set", "scenario.speed_kmh=60", "--policy", "adjusted"])
+    args = command.build_parser().parse_args(["run", "--speed-kmh", "50", "--set", "scenario.speed_kmh=60", "--policy", "adjusted"])
     config = config_from_args(args)
     assert config.scenario.speed_kmh == 60.0
     assert config.policy.name == "adjusted"

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,6 +18,7 @@ import pytest
 
 import avsim.loop
 from avsim import cli
+from avsim.cli import command
 from avsim.config import MAX_SEED
 from helpers import write_files
 
@@ -209,7 +212,7 @@ def test_every_output_argument_of_every_subcommand_is_declared_and_so_checked():
     from avsim.outputs import declared_outputs
 
     output_like = {"out", "json", "rrd", "mp4", "mcap", "output"}
-    for name, parser in cli.iter_parsers(cli.build_parser()):
+    for name, parser in command.iter_parsers(command.build_parser()):
         declared = {spec.dest for spec in declared_outputs(parser)}
         for action in parser._actions:
             if action.dest in output_like:
@@ -265,3 +268,22 @@ def test_a_physics_error_keeps_its_own_status(monkeypatch, capsys):
     _patched_command(monkeypatch, PhysicsError("physics diverged at t = 1.00 s"))
     assert cli.main(["bench"]) == 3
     assert capsys.readouterr().err == "avsim: error: physics diverged at t = 1.00 s\n"
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--perception", "oracle"]])
+def test_an_unknown_mujoco_gl_is_refused_before_mujoco_is_imported(argv):
+    # In a fresh process: this one imported MuJoCo long ago, under MUJOCO_GL=egl, so only a new
+    # interpreter shows what importing the command modules does with a bad value (a traceback, once).
+    env = {**os.environ, "MUJOCO_GL": "bogus"}
+    env.pop("PYOPENGL_PLATFORM", None)
+    done = subprocess.run([sys.executable, "-m", "avsim", *argv], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == ["avsim: error: MUJOCO_GL='bogus' is not an offscreen renderer avsim can use; "
+                                        "set MUJOCO_GL to one of: egl (Debian package libegl1), osmesa (Debian package libosmesa6)"]
+    assert done.stdout == ""
+
+
+def test_importing_the_command_line_package_does_not_import_mujoco():
+    probe = "import sys, avsim.cli; print('mujoco' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert done.stdout.strip() == "False", done.stderr

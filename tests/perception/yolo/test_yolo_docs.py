@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from avsim.cli import build_parser
+from avsim.cli.command import build_parser
 from avsim.config import PerceptionConfig
 
 DOC = (Path(__file__).resolve().parents[3] / "docs" / "yolo.md").read_text()
