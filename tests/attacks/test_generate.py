@@ -153,7 +153,7 @@ def test_the_three_network_target_names_every_weight_file_and_a_regeneration_che
 def test_attack_eval_takes_yolo_among_its_detectors_and_refuses_others_in_one_line(capsys):
     assert cli.main(["attack", "eval", "--detectors", "detector,yolo,onnx", "--signs", "clean"]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert len(err) == 1 and "--detectors takes detector, coco, yolo, nanodet" in err[0]
+    assert len(err) == 1 and "--detectors: unknown name 'onnx'; choose from detector, coco, yolo, nanodet" in err[0]
 
 
 def test_an_unknown_purification_is_one_line_and_exit_2_before_anything_is_rendered(tmp_path, capsys):
