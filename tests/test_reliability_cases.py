@@ -347,6 +347,8 @@ AUDIT_2026_11_28 = {
     "attack generate --weights against a target without the own detector": Case(
         ["attack", "generate", "--method", "yang", "--detector", "coco", "--weights", "{tmp}/w.pt", "--out", "{tmp}/a.png"],
         "does not run it", files={"w.pt": b"weights"}),
+    "attack sweep --rrd without --closed-loop": Case(
+        ["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--rrd", "all", "--out", "{tmp}/out"], "add --closed-loop"),
     "replay of a file that is no bag": Case(["replay", "{tmp}/image.png"], "cannot read bag",
                                             files={"image.png": b"\x89PNG\r\n\x1a\n" + b"\x00" * 32}),
 }

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from avsim.cli.flags import SEED_FLAG
 from avsim.cli.overrides import parse_set
-from avsim.cli.recording_modes import add_recording_modes
+from avsim.cli.recording_modes import DEFAULT_MCAP_MODE, DEFAULT_RRD_MODE, add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output
@@ -121,6 +121,10 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
     if args.method not in BUDGET_KEY:
         raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
     budgets = [float(b) for b in args.budgets]  # each in (0, 1] (number_list_flag)
+    if not args.closed_loop and (args.rrd_mode, args.mcap_mode) != (None, None):
+        raise ConfigError("--rrd and --mcap choose which closed-loop runs are recorded; add --closed-loop FILE, "
+                          "or drop them")
+    rrd, mcap = args.rrd_mode or DEFAULT_RRD_MODE, args.mcap_mode or DEFAULT_MCAP_MODE
     protocol = None
     if args.closed_loop:
         from avsim.experiments.attacks.budget_success import load_protocol
@@ -128,8 +132,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
         protocol = load_protocol(args.closed_loop)  # checked before any texture is optimised
     with locked_output(args.out, f"avsim attack sweep --out {args.out}"):  # one writer at a time
         csv_path, plot_path = budget_sweep(args.method, budgets, Path(args.out), args.steps, args.seed, args.weights,
-                                           protocol=protocol, workers=args.workers, rrd=args.rrd_mode,
-                                           mcap=args.mcap_mode)
+                                           protocol=protocol, workers=args.workers, rrd=rrd, mcap=mcap)
     print(f"wrote {csv_path} and {plot_path}")
     return 0
 
@@ -207,4 +210,5 @@ def add_commands(sub) -> None:
                     help="closed-loop runs at once (default 1)")
     add_output_argument(sw, "--out", kind=FOLDER, default="results/attack_sweep", help="results directory")
     add_recording_modes(sw, "with --closed-loop: ")
-    sw.set_defaults(func=_cmd_attack_sweep)
+    # None: not given, so that a recording flag without --closed-loop is refused rather than ignored.
+    sw.set_defaults(func=_cmd_attack_sweep, rrd_mode=None, mcap_mode=None)

@@ -159,10 +159,11 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
         with path.open("rb") as handle:
             raw = tomllib.load(handle)
     except FileNotFoundError:
-        raise ConfigError(f"{path}: {kind} file not found") from None
+        raise ConfigError(f"{path}: {kind} file not found; check the path, or start from one of the files in "
+                          f"{'experiments/sweeps/' if kind == 'sweep' else 'experiments/'}") from None
     except tomllib.TOMLDecodeError as exc:
         # tomllib's message names the line and column: "... (at line 3, column 7)".
-        raise ConfigError(f"{path}: malformed TOML: {exc}") from None
+        raise ConfigError(f"{path}: malformed TOML: {exc}; fix that line (TOML syntax: https://toml.io)") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not a text TOML file (byte {exc.start} is not UTF-8); give the {kind} file "
                           f"as TOML text, like those in experiments/") from None

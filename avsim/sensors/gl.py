@@ -44,8 +44,13 @@ def _cannot_render(exc: Exception) -> RenderError:
     raise_if_interrupted(exc)
     backend = os.environ.get("MUJOCO_GL", "egl")
     detail = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    return RenderError(f"cannot start offscreen rendering with MUJOCO_GL={backend} ({detail}); install Mesa's EGL "
-                       "(apt-get install libegl1 libgl1-mesa-dri) or run with MUJOCO_GL=osmesa (needs libosmesa6)")
+    device = os.environ.get("MUJOCO_EGL_DEVICE_ID")
+    if backend == "egl" and device is not None:  # a device the machine lacks, not a missing EGL
+        fix = f"unset MUJOCO_EGL_DEVICE_ID (={device}) or set it to a device this machine has"
+    else:
+        fix = ("install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri) or run with MUJOCO_GL=osmesa "
+               "(needs libosmesa6)")
+    return RenderError(f"cannot start offscreen rendering with MUJOCO_GL={backend} ({detail}); {fix}")
 
 
 def check_offscreen_rendering() -> None:

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from avsim.loop import ClosedLoop
-from avsim.sensors.gl import OffscreenRenderer
+from avsim.errors import RenderError
+from avsim.sensors.gl import OffscreenRenderer, check_offscreen_rendering
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from helpers import make_config
 
@@ -112,3 +113,20 @@ def test_a_reflective_material_keeps_the_stencil_buffer_for_mujoco_and_draws_the
         assert np.array_equal(region, frame[200:480, 100:400])
     finally:
         renderer.close()
+
+
+def _no_egl(*args, **kwargs):
+    raise RuntimeError("Cannot initialize a EGL device display\nsecond line")
+
+
+def test_offscreen_rendering_is_checked_with_a_one_line_fix(monkeypatch):
+    check_offscreen_rendering()  # this machine renders
+    monkeypatch.setattr("avsim.sensors.gl.mujoco.GLContext", _no_egl)
+    monkeypatch.delenv("MUJOCO_EGL_DEVICE_ID", raising=False)
+    with pytest.raises(RenderError, match="install Mesa's EGL") as err:
+        check_offscreen_rendering()
+    assert "\n" not in str(err.value) and "Cannot initialize a EGL device display" in str(err.value)
+    # A device number the machine lacks is named as the fault, not a missing EGL.
+    monkeypatch.setenv("MUJOCO_EGL_DEVICE_ID", "99")
+    with pytest.raises(RenderError, match=r"unset MUJOCO_EGL_DEVICE_ID \(=99\)"):
+        check_offscreen_rendering()
