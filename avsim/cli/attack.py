@@ -11,7 +11,7 @@ from pathlib import Path
 
 from avsim.cli.flags import SEED_FLAG
 from avsim.cli.overrides import parse_set
-from avsim.cli.recording_modes import DEFAULT_MCAP_MODE, DEFAULT_RRD_MODE, add_recording_modes
+from avsim.cli.recording_modes import add_recording_modes
 from avsim.config import ScenarioConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.experiments.output_lock import locked_output
@@ -117,6 +117,7 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
 
 def _cmd_attack_sweep(args: argparse.Namespace) -> int:
     from avsim.experiments.attacks.budget_sweep import BUDGET_KEY, budget_sweep
+    from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD
 
     if args.method not in BUDGET_KEY:
         raise ConfigError(f"unknown attack '{args.method}'; choose one of: {', '.join(sorted(BUDGET_KEY))}")
@@ -124,7 +125,7 @@ def _cmd_attack_sweep(args: argparse.Namespace) -> int:
     if not args.closed_loop and (args.rrd_mode, args.mcap_mode) != (None, None):
         raise ConfigError("--rrd and --mcap choose which closed-loop runs are recorded; add --closed-loop FILE, "
                           "or drop them")
-    rrd, mcap = args.rrd_mode or DEFAULT_RRD_MODE, args.mcap_mode or DEFAULT_MCAP_MODE
+    rrd, mcap = args.rrd_mode or DEFAULT_RRD, args.mcap_mode or DEFAULT_MCAP
     protocol = None
     if args.closed_loop:
         from avsim.experiments.attacks.budget_success import load_protocol

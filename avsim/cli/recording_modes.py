@@ -10,16 +10,15 @@ import argparse
 
 # avsim.experiments.recordings.RECORD_MODES (a test holds them equal), not imported: it imports the simulator.
 RECORD_CHOICES = ("none", "failed", "all")
-DEFAULT_RRD_MODE, DEFAULT_MCAP_MODE = "failed", "none"
 
 
 def add_recording_modes(parser: argparse.ArgumentParser, prefix: str = "") -> None:
     """--rrd and --mcap: which of a batch's runs are recorded; `prefix` starts their help."""
     # dest *_mode: these name runs, not files (`avsim run --rrd FILE` is an output path).
-    parser.add_argument("--rrd", dest="rrd_mode", default=DEFAULT_RRD_MODE, choices=RECORD_CHOICES,
+    parser.add_argument("--rrd", dest="rrd_mode", default="failed", choices=RECORD_CHOICES,
                         help=f"{prefix}rerun recordings of no run, the runs whose car failed (ran the sign, a phantom "
                              "stop; the default) or every run, under OUT/rrd/; any run is recorded later by avsim run "
                              "--config ... --cell ... --seed ... --rrd FILE (docs/recording.md)")
-    parser.add_argument("--mcap", dest="mcap_mode", default=DEFAULT_MCAP_MODE, choices=RECORD_CHOICES,
+    parser.add_argument("--mcap", dest="mcap_mode", default="none", choices=RECORD_CHOICES,
                         help=f"{prefix}ROS 2 bags (MCAP, needs avsim[ros]) of the same choice of runs, under OUT/mcap/ "
                              "(default none; docs/ros.md)")

@@ -43,7 +43,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
-from avsim.experiments.spec import Experiment, load_experiment
+from avsim.experiments.spec import Experiment, check_networks, load_experiment
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE, SETTINGS
 
@@ -92,6 +92,9 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
         experiments = [dataclasses.replace(e, seeds=1 if quick else seeds) for e in experiments]
     runs = sum(e.size for e in experiments)
     check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
+    for experiment in experiments:
+        for cell in experiment.cells:
+            check_networks(cell.config)
     return experiments
 
 

@@ -235,7 +235,6 @@ def _parse_cells(path: Path, raw_cells: Any, defaults: dict[str, Any],
             reject_seed(overrides)
             config = with_overrides(SimConfig(), deep_merge(defaults, overrides))
             check_registry_names(config)
-            check_networks(config)
             check_read(config, set_keys(overrides))  # a key the cell sets, its policy and perception read
         # Both ends of every [vary] range must be valid for this cell, so every draw is.
         with located(path, f"[vary], applied to {where}"):
@@ -290,8 +289,9 @@ def check_registry_names(config: SimConfig) -> None:
 
 def check_networks(config: SimConfig) -> None:
     """The run's perception networks build (`factory.check_networks_build`, once per distinct set of
-    files): the batch commands check every run's config so, and a missing or corrupt weights file
-    stops the batch in one line before its results folder is made, not run by run."""
+    files): the batch commands check every config they will run so, and a missing or corrupt weights
+    file stops the batch in one line before its results folder is made, not run by run. Not part of
+    loading a file: `avsim run --config` builds its one cell's networks anyway."""
     from avsim.perception.factory import check_networks_build
 
     check_networks_build(config.perception)
