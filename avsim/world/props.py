@@ -41,7 +41,7 @@ CAR_PAINTS = ((0.1, 0.2, 0.5), (0.85, 0.85, 0.85), (0.1, 0.1, 0.1), (0.3, 0.35, 
 FACADES = ("facade_brick", "facade_concrete", "facade_glass", "facade_sand")
 
 
-_FACADE_COLOURS = {  # wall, window
+FACADE_COLOURS = {  # wall, window
     "facade_brick": ((0.55, 0.3, 0.22), (0.2, 0.24, 0.3)),
     "facade_concrete": ((0.7, 0.7, 0.68), (0.25, 0.3, 0.36)),
     "facade_glass": ((0.35, 0.45, 0.55), (0.2, 0.28, 0.36)),
@@ -73,11 +73,11 @@ def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool 
             span_m = st.CONCRETE_REPEAT_M if name in st.CONCRETE else st.GROUND_REPEAT_M
             _add_textured_material(spec, name, textures[name], (1 / span_m, 1 / span_m))
     if textured:
-        for name, rgb in st.facade_textures(_FACADE_COLOURS).items():
+        for name, rgb in st.facade_textures(FACADE_COLOURS).items():
             _add_textured_material(spec, name, rgb, (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
         return
     # Facades: a checker texture repeated per metre reads as rows of windows.
-    for name, (wall, window) in _FACADE_COLOURS.items():
+    for name, (wall, window) in FACADE_COLOURS.items():
         spec.add_texture(name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
                          rgb1=list(wall), rgb2=list(window), width=64, height=64)
         mat = spec.add_material(name=name, texrepeat=[0.3, 0.3], texuniform=True)

@@ -7,7 +7,8 @@ step before it that had a confident stop-sign box anywhere but on the stop sign:
 - each confident stop-sign box (score >= policy.conf_threshold): its camera, the network that gave it
   (`Detection.source`; the ensemble tags each member's box), its height, its score, and what it sits on
   (the geom most common in the middle ninth of the box, from a segmentation render of that camera at the
-  same state, named as `avsim realism` names them).
+  same state, named as `avsim realism` names them), and how much of the stop sign's visible face it covers
+  (`avsim realism`'s "over a sign": the fraction of the sign's box inside it; 0 for a box apart from the sign).
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/phantom_brake.py RESULTS.jsonl "CELL" 1,2,3
 
@@ -17,10 +18,12 @@ Measured here: docs/realism.md, "The COCO CenterNet's phantom with see-through c
 import json
 import sys
 
+import numpy as np
+
 from avsim.config import SimConfig, with_overrides
 from avsim.control.policy_base import STOP_CLASS
 from avsim.loop import ClosedLoop
-from avsim.realism.scoring import geom_under_box
+from avsim.realism.scoring import geom_under_box, sign_cover
 
 
 def _recorded_run(results_path: str, cell: str, seed: int) -> dict:
@@ -32,25 +35,32 @@ def _recorded_run(results_path: str, cell: str, seed: int) -> dict:
     sys.exit(f"error: no run of cell {cell!r}, seed {seed} in {results_path}; give a cell and seed the file holds")
 
 
-def _labelled_boxes(loop: ClosedLoop, detections: dict) -> list[tuple[str, object, str]]:
-    """(camera, detection, what it sits on) of every confident stop-sign box, one segmentation render a camera."""
+def _labelled_boxes(loop: ClosedLoop, detections: dict) -> list[tuple[str, object, str, float, np.ndarray]]:
+    """(camera, detection, what it sits on, the fraction of the stop sign's box it covers, that box (1, 4) or
+    (0, 4) xyxy [px]) of every confident stop-sign box, one segmentation render a camera."""
     labelled = []
+    sign = loop.scene.stop_sign
+    face = {"stop_sign": (loop.model.geom(sign.face_geom).id, sign.corners_m())}
     for camera, dets in detections.items():
         confident = [d for d in dets if d.class_name == STOP_CLASS and d.confidence >= loop.config.policy.conf_threshold]
         if confident:
             ids = loop.rig.render_segmentation(loop.data, camera)
-            labelled += [(camera, d, geom_under_box(loop.model, ids, loop.config.camera.height_px, d.box_xyxy_px))
-                         for d in confident]
+            truth = np.asarray(list(loop.rig.sign_boxes(loop.data, camera, face).values()), float).reshape(-1, 4)
+            labelled += [(camera, d, geom_under_box(loop.model, ids, loop.config.camera.height_px, d.box_xyxy_px),
+                          sign_cover(d.box_xyxy_px, truth), truth) for d in confident]
     return labelled
 
 
 def _print_step(heading: str, sign_dist_m: float, estimate_m, labelled: list) -> None:
     estimate = "none" if estimate_m is None else f"{estimate_m:.1f} m"
     print(f"  {heading} {sign_dist_m:.1f} m before the sign (the policy's stop-line estimate: {estimate})", flush=True)
-    for camera, d, on in labelled:
+    for camera, d, on, cover, truth in labelled:
         x0, y0, x1, y1 = d.box_xyxy_px
+        sign = "the sign not in view" if not len(truth) else (
+            f"covers {cover:.0%} of the sign's box ({truth[0, 3] - truth[0, 1]:.0f} px tall at "
+            f"({(truth[0, 0] + truth[0, 2]) / 2:.0f}, {(truth[0, 1] + truth[0, 3]) / 2:.0f}) px)")
         print(f"    {camera} {d.source or 'network'} box {y1 - y0:.0f} px tall at ({(x0 + x1) / 2:.0f}, "
-              f"{(y0 + y1) / 2:.0f}) px, score {d.confidence:.2f}, on {on}", flush=True)
+              f"{(y0 + y1) / 2:.0f}) px, score {d.confidence:.2f}, on {on}; {sign}", flush=True)
 
 
 def replay(results_path: str, cell: str, seed: int) -> None:
@@ -67,7 +77,7 @@ def replay(results_path: str, cell: str, seed: int) -> None:
         if not braking_before and record.brake > 0:
             _print_step("braking began", sign_dist_m, record.est_stop_line_dist_m, labelled)
             break
-        if any(on != "stop_sign/face" for _, _, on in labelled):
+        if any(on != "stop_sign/face" for _, _, on, _, _ in labelled):
             _print_step("a box off the sign", sign_dist_m, record.est_stop_line_dist_m, labelled)
     while not loop.done():
         loop.step()

@@ -16,8 +16,8 @@ def ground():
 def test_textures_are_the_same_every_time(ground):
     again = surface_textures.ground_textures(props._FLAT_COLOURS)
     assert all(np.array_equal(ground[name], again[name]) for name in ground)
-    facades = surface_textures.facade_textures(props._FACADE_COLOURS)
-    assert all(np.array_equal(a, b) for a, b in zip(facades.values(), surface_textures.facade_textures(props._FACADE_COLOURS).values()))
+    facades = surface_textures.facade_textures(props.FACADE_COLOURS)
+    assert all(np.array_equal(a, b) for a, b in zip(facades.values(), surface_textures.facade_textures(props.FACADE_COLOURS).values()))
 
 
 def test_each_texture_keeps_its_flat_colour_on_average_and_varies_at_the_texel_scale(ground):
@@ -30,7 +30,7 @@ def test_each_texture_keeps_its_flat_colour_on_average_and_varies_at_the_texel_s
 
 
 def test_a_facade_texture_has_a_window_darker_than_its_wall():
-    brick = surface_textures.facade_textures(props._FACADE_COLOURS)["facade_brick"].astype(float)
+    brick = surface_textures.facade_textures(props.FACADE_COLOURS)["facade_brick"].astype(float)
     assert brick.shape == (350, 250, 3)
     assert brick[150:200, 70:110].mean() < 0.7 * brick[10:60, 10:40].mean()
 
