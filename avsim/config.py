@@ -38,6 +38,7 @@ ENSEMBLE_NETWORKS = ("detector", "coco", "yolo")
 # Values of CameraConfig.offsamples and .seg_supersample, and of PerceptionConfig.purify_median_kernel_px.
 OFFSAMPLES = (0, 1, 2, 4, 8, 16)
 SEG_SUPERSAMPLES = (1, 2, 3, 4)
+TEXTURE_ANISOTROPIES = (1, 2, 4, 8, 16)
 SUPERSAMPLES = (1, 2, 3, 4)
 MEDIAN_KERNELS_PX = (3, 5, 7, 9)
 # scenario.sign = NO_SIGN: no stop sign at the junction (a speed-limit sign stands on its post).
@@ -290,6 +291,10 @@ class CameraConfig:
     # RGB rendered at this multiple of the resolution and area-averaged down, as a photosite
     # integrates the light over its area (anti-aliasing at the sensor).
     supersample: int = 1
+    # Texture filtering: 1 is MuJoCo's trilinear mip-mapping, which blurs a texture seen at a grazing angle
+    # along both of a pixel's axes by its footprint's long one; N samples the footprint along its long axis
+    # up to N:1 (anisotropic filtering), closer to what a photosite integrates on a facade seen edge-on.
+    texture_anisotropy: int = 1
     # Lens blur: a Gaussian point-spread function with this MTF50 [cycles/px] (0: an ideal lens).
     lens_mtf50_cyc_per_px: float = ranged(0.0, 0, 1.0, unit="cycles/px")
     # The ISP's JPEG encoding at this quality, after the sensor noise (0: frames stay uncompressed).
@@ -313,6 +318,8 @@ class CameraConfig:
         _require(self.offsamples in OFFSAMPLES, f"camera.offsamples must be 0, 1, 2, 4, 8 or 16, got {self.offsamples}")
         _require(self.seg_supersample in SEG_SUPERSAMPLES, f"camera.seg_supersample must be 1..4, got {self.seg_supersample}")
         _require(self.supersample in SUPERSAMPLES, f"camera.supersample must be 1, 2, 3 or 4, got {self.supersample}")
+        _require(self.texture_anisotropy in TEXTURE_ANISOTROPIES,
+                 f"camera.texture_anisotropy must be 1, 2, 4, 8 or 16, got {self.texture_anisotropy}")
         _require(self.lens_mtf50_cyc_per_px == 0 or self.lens_mtf50_cyc_per_px >= 0.05,
                  f"camera.lens_mtf50_cyc_per_px must be 0 (an ideal lens) or in [0.05, 1], got {self.lens_mtf50_cyc_per_px}")
 

@@ -52,6 +52,7 @@ CHOICES: dict[str, Any] = {
     "camera.offsamples": config_module.OFFSAMPLES,
     "camera.seg_supersample": config_module.SEG_SUPERSAMPLES,
     "camera.supersample": config_module.SUPERSAMPLES,
+    "camera.texture_anisotropy": config_module.TEXTURE_ANISOTROPIES,
     "perception.kind": PERCEPTIONS.names(),
     "perception.detector_precision": config_module.PRECISIONS,
     "perception.coco_input": config_module.COCO_INPUTS,

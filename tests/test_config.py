@@ -116,6 +116,7 @@ def test_with_overrides_rejects_non_finite_floats(bad):
         lambda: CameraConfig(fovy_deg=0.5),
         lambda: CameraConfig(offsamples=3),
         lambda: CameraConfig(seg_supersample=5),
+        lambda: CameraConfig(texture_anisotropy=3),
         lambda: LoopConfig(physics_dt_s=0.003),  # 0.05 / 0.003 is not whole
         lambda: LoopConfig(control_dt_s=0.051),
         lambda: LoopConfig(physics_dt_s=0.0),

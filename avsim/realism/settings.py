@@ -40,6 +40,10 @@ LENS_MTF50_CYC_PER_PX = 0.33
 # JPEG quality of an ISP that stores or streams compressed frames: an assumed high quality.
 ISP_JPEG_QUALITY = 90
 
+# Anisotropic texture filtering: the most the GL offers (llvmpipe, and most GPUs), the footprint of a pixel on a
+# facade seen at 86 deg from its normal (a 14:1 ellipse).
+TEXTURE_ANISOTROPY = 16
+
 # The sun's shadow map: 4096 texels over the +-60 m it covers (avsim/world/scene.py), 2.9 cm a texel,
 # about the size of a pixel at 26 m with the study camera.
 SHADOW_MAP_PX = 4096
@@ -55,10 +59,14 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
     RenderSetting("lens", {"camera": {"lens_mtf50_cyc_per_px": LENS_MTF50_CYC_PER_PX}}, "a real lens's blur, MTF50 0.33 cycles/px"),
     RenderSetting("jpeg", {"camera": {"jpeg_quality": ISP_JPEG_QUALITY}}, "the ISP's JPEG encoding at quality 90, after the noise"),
     RenderSetting("photo", {"camera": _PHOTO}, "all three photographic stages: ss2, lens and jpeg"),
+    RenderSetting("aniso16", {"camera": {"texture_anisotropy": TEXTURE_ANISOTROPY}},
+                  "textures filtered over a pixel's footprint up to 16:1, as a photosite integrates a surface seen edge-on"),
     RenderSetting("textured", {"scenario": {"materials": "textured"}},
                   "surfaces with procedural texture at the scale a camera resolves (asphalt, grass, leaves, facades)"),
     RenderSetting("automotive_1080p", {"camera": {"preset": "automotive_1080p"}},
                   "a modern automotive front camera: 1920x1080 at 55 deg horizontal field of view (f 1844 px against 896)"),
+    RenderSetting("textured_aniso16", {"scenario": {"materials": "textured"}, "camera": {"texture_anisotropy": TEXTURE_ANISOTROPY}},
+                  "textured and aniso16 together: the windows of a facade seen edge-on kept apart, not smeared into streaks"),
     RenderSetting("textured_photo", {"scenario": {"materials": "textured"}, "camera": _PHOTO}, "textured and photo together"),
     RenderSetting("sheeting", {"scenario": {"sign_materials": "sheeting"}},
                   "sign faces in the standard's sheeting colours (23 CFR 655 boxes) on an aluminium blank, galvanised posts"),

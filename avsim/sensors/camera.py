@@ -184,7 +184,7 @@ class CameraRig:
         s = self._photo.supersample
         if self._rgb is None:
             self._rgb = OffscreenRenderer(self._model, self._config.width_px * s, self._config.height_px * s,
-                                          segmentation=False, fog=self._fog)
+                                          segmentation=False, fog=self._fog, texture_anisotropy=self._config.texture_anisotropy)
         if region_px is None:
             return np.array(self._photo.lens(self._photo.integrate(self._rgb.render(data, self._ids[camera], self._option))))
         x0, y0, x1, y1 = region_px

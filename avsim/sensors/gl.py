@@ -18,6 +18,9 @@ from avsim.sensors.culling import FULL_VIEW_NDC, cullable, has_reflective_materi
 from avsim.termination import raise_if_interrupted
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+# GL 4.6 (and GL_EXT_texture_filter_anisotropic): a texture's sampling ratio, and the most the GL allows.
+_TEXTURE_MAX_ANISOTROPY = 0x84FE
+_MAX_TEXTURE_MAX_ANISOTROPY = 0x84FF
 
 
 def context_with_framebuffer(model: mujoco.MjModel, width_px: int, height_px: int) -> mujoco.MjrContext:
@@ -73,9 +76,11 @@ class OffscreenRenderer:
     """
 
     def __init__(self, model: mujoco.MjModel, width_px: int, height_px: int, segmentation: bool,
-                 fog: bool = False, max_geom: int = 10000, cull: bool = True) -> None:
+                 fog: bool = False, max_geom: int = 10000, cull: bool = True, texture_anisotropy: int = 1) -> None:
         """cull: leave the geoms the camera cannot see out of each render, where that cannot change
-        a pixel (`avsim.sensors.culling`); False draws every geom, as a check of it."""
+        a pixel (`avsim.sensors.culling`); False draws every geom, as a check of it.
+        texture_anisotropy: 1 keeps MuJoCo's trilinear mip-mapping; N > 1 filters every 2-D texture
+        anisotropically, up to N samples along a pixel's footprint (`camera.texture_anisotropy`)."""
         try:
             self._gl = mujoco.GLContext(width_px, height_px)
             self._gl.make_current()
@@ -83,6 +88,8 @@ class OffscreenRenderer:
         except Exception as exc:  # the GL backends raise several unrelated types
             raise _cannot_render(exc) from None
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
+        if texture_anisotropy > 1:
+            self._filter_textures_anisotropically(texture_anisotropy)
         self._model = model
         self._scene = mujoco.MjvScene(model, maxgeom=max_geom)
         if segmentation:
@@ -100,6 +107,24 @@ class OffscreenRenderer:
         self.rasterise_region_only = True
         self._stencil_region: tuple[int, int, int, int] | None = None
         self._buffer = np.empty((height_px, width_px, 3), dtype=np.uint8)
+
+    def _filter_textures_anisotropically(self, ratio: int) -> None:
+        """Set every 2-D texture MuJoCo uploaded to sample up to `ratio` texels along a pixel's footprint.
+
+        MuJoCo uploads its textures once, with trilinear mip-maps; a texture's filter is its own GL
+        state, read at every draw, so setting it here changes every later frame and nothing else.
+        """
+        most = float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY))
+        if most < ratio:
+            renderer_name = (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
+            self.close()
+            raise RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {most:g}:1 "
+                              f"({renderer_name}); set camera.texture_anisotropy to 1")
+        for i in range(self._con.ntexture):
+            if self._con.textureType[i] == mujoco.mjtTexture.mjTEXTURE_2D:
+                GL.glBindTexture(GL.GL_TEXTURE_2D, int(self._con.texture[i]))
+                GL.glTexParameterf(GL.GL_TEXTURE_2D, _TEXTURE_MAX_ANISOTROPY, float(ratio))
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
 
     def render(self, data: mujoco.MjData, camera_id: int, option: mujoco.MjvOption,
                region: tuple[int, int, int, int] | None = None) -> np.ndarray:

@@ -9,6 +9,7 @@ from avsim.loop import ClosedLoop
 from avsim.errors import RenderError
 from avsim.sensors.gl import OffscreenRenderer, check_offscreen_rendering
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.world.signs import set_texture_data
 from helpers import make_config
 
 # A red box filling the view of a camera looking down the x axis, before a grey plane.
@@ -130,3 +131,46 @@ def test_offscreen_rendering_is_checked_with_a_one_line_fix(monkeypatch):
     monkeypatch.setenv("MUJOCO_EGL_DEVICE_ID", "99")
     with pytest.raises(RenderError, match=r"unset MUJOCO_EGL_DEVICE_ID \(=99\)"):
         check_offscreen_rendering()
+
+
+def _striped_road() -> mujoco.MjModel:
+    """SCENE with its plane painted in 12.5-cm stripes along the camera's view (x)."""
+    spec = mujoco.MjSpec.from_string(SCENE)
+    stripes = np.zeros((64, 64, 3), np.uint8)
+    stripes[(np.arange(64) // 8) % 2 == 1] = 230  # rows alternate: the texture varies along v only
+    set_texture_data(spec.add_texture(name="stripes", type=mujoco.mjtTexture.mjTEXTURE_2D), stripes)
+    road = spec.add_material(name="road", texrepeat=[1, 1], texuniform=True)
+    road.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "stripes"
+    spec.geoms[0].material = "road"
+    return spec.compile()
+
+
+def test_anisotropic_filtering_sharpens_a_texture_seen_edge_on_and_leaves_untextured_pixels_alone():
+    # Far off, a pixel's footprint on the road is long along it and narrow across it; trilinear filtering
+    # blurs the texture by the footprint's length, so stripes along the road grey out, but anisotropic
+    # filtering keeps them.
+    model = _striped_road()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    frames = {}
+    for ratio in (1, 16):
+        renderer = OffscreenRenderer(model, 640, 480, segmentation=False, texture_anisotropy=ratio)
+        try:
+            frames[ratio] = renderer.render(data, 0, mujoco.MjvOption()).astype(int)
+        finally:
+            renderer.close()
+    box = frames[1][200:280, 300:340]  # the red box, untextured
+    assert box[..., 0].min() - box[..., 1].max() > 80
+    assert np.array_equal(frames[16][200:280, 300:340], box)
+    # Left of the box, 15-70 m ahead of a camera 1 m above the road (rows 258-290), where a footprint is
+    # 10-70 times longer than wide.
+    contrast = {ratio: frame[258:290, :200].std(axis=1).mean() for ratio, frame in frames.items()}  # across each row
+    assert contrast[16] > 2 * contrast[1], contrast
+
+
+def test_more_anisotropy_than_the_gl_offers_is_refused_in_one_line(monkeypatch):
+    monkeypatch.setattr("avsim.sensors.gl.GL.glGetFloatv", lambda name: 8.0)
+    model = _striped_road()
+    with pytest.raises(RenderError, match=r"filters at most 8:1 .*set camera.texture_anisotropy to 1") as err:
+        OffscreenRenderer(model, 64, 48, segmentation=False, texture_anisotropy=16)
+    assert "\n" not in str(err.value)
