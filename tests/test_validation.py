@@ -44,8 +44,8 @@ def _numeric_keys() -> list[tuple[str, Range | None, type]]:
 
 NUMERIC_KEYS = _numeric_keys()
 # Choices, not ranges: these take one of a few listed values (checked by their dataclass).
-LISTED_VALUES = {"camera.offsamples", "camera.seg_supersample", "camera.supersample", "perception.purify_median_kernel_px",
-                 "scenario.sun_shadow_map_px"}
+LISTED_VALUES = {"camera.offsamples", "camera.seg_supersample", "camera.supersample", "camera.texture_anisotropy",
+                 "perception.purify_median_kernel_px", "scenario.sun_shadow_map_px"}
 
 
 def test_every_numeric_config_key_declares_its_range():
