@@ -67,6 +67,8 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
                   "a modern automotive front camera: 1920x1080 at 55 deg horizontal field of view (f 1844 px against 896)"),
     RenderSetting("textured_aniso16", {"scenario": {"materials": "textured"}, "camera": {"texture_anisotropy": TEXTURE_ANISOTROPY}},
                   "textured and aniso16 together: the windows of a facade seen edge-on kept apart, not smeared into streaks"),
+    RenderSetting("textured_aniso4", {"scenario": {"materials": "textured"}, "camera": {"texture_anisotropy": 4}},
+                  "textured_aniso16 at a quarter of the ratio (a footprint's at 76 deg): how much its result rests on 16"),
     RenderSetting("textured_photo", {"scenario": {"materials": "textured"}, "camera": _PHOTO}, "textured and photo together"),
     RenderSetting("sheeting", {"scenario": {"sign_materials": "sheeting"}},
                   "sign faces in the standard's sheeting colours (23 CFR 655 boxes) on an aluminium blank, galvanised posts"),
