@@ -309,6 +309,31 @@ def test_a_machine_that_cannot_render_is_refused_before_a_batch_starts(case, tmp
     _run_case(case, tmp_path, capsys, monkeypatch)
 
 
+# ---- more texture anisotropy than this GL filters ---------------------------------------------------
+
+MORE_ANISOTROPY_THAN_THE_GL_OFFERS = {
+    "run --set camera.texture_anisotropy=16": Case(["run", "--set", "camera.texture_anisotropy=16"], "filters at most 8:1"),
+    "reproduce --setting textured_aniso16": Case(
+        ["reproduce", "--experiments", "{tmp}/e.toml", "--setting", "textured_aniso16", "--out", "{tmp}/out"],
+        "filters at most 8:1", files={"e.toml": 'seeds = 1\n[[cells]]\nname = "a"\n'}),
+    "sweep: one grid point's anisotropy": Case(
+        ["sweep", "{tmp}/s.toml", "--out", "{tmp}/out"], "set camera.texture_anisotropy to 1",
+        files={"s.toml": 'seeds = 1\n[grid]\n"camera.texture_anisotropy" = [1, 16]\n'}),
+    "leaderboard --quick --setting textured_aniso16": Case(
+        ["leaderboard", "--quick", "--setting", "textured_aniso16", "--out", "{tmp}/out"], "filters at most 8:1"),
+    "realism --settings textured,textured_aniso16": Case(
+        ["realism", "--settings", "textured,textured_aniso16", "--towns", "town07", "--frames", "1", "--out", "{tmp}/r"],
+        "filters at most 8:1"),
+}
+
+
+@pytest.mark.parametrize("case", list(MORE_ANISOTROPY_THAN_THE_GL_OFFERS.values()), ids=list(MORE_ANISOTROPY_THAN_THE_GL_OFFERS))
+def test_more_anisotropy_than_the_gl_offers_is_refused_before_the_first_run(case, tmp_path, capsys, monkeypatch, no_work):
+    # Before: the batch started, and each run's renderer refused when it was built.
+    monkeypatch.setattr("avsim.sensors.gl._gl_limits", lambda: (8.0, "a GL of 8:1"))
+    _run_case(case, tmp_path, capsys, monkeypatch)
+
+
 _CORRUPT_WEIGHTS = b"not a torch file" * 64
 BAD_WEIGHTS_IN_A_BATCH_FILE = {
     "sweep: corrupt weights in [defaults]": Case(

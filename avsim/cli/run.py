@@ -53,9 +53,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         config = config_from_args(args, setting)
     from avsim.config import NO_SIGN
     from avsim.config_owners import check_read, set_keys
-    from avsim.experiments.spec import check_run_names
+    from avsim.experiments.spec import check_renderer, check_run_names
 
     check_run_names(config)  # every name and the sign texture, before the scene is built
+    check_renderer(config)
     # A key set here that this run does not read: its policy, its perception, or what it draws
     # (a recorder draws the front camera in colour, whatever the perception).
     # With --config, the seed picks the run of the file (its [vary] draw, its record), so it is read.

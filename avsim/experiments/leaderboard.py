@@ -59,7 +59,7 @@ from avsim.errors import ConfigError
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import MAX_RUNS, check_plan_size
 from avsim.experiments.run_task import RunSpec
-from avsim.experiments.spec import (as_table, check_networks, check_run_names, config_at_seed, deep_merge, located, parse_vary,
+from avsim.experiments.spec import (as_table, check_networks, check_renderer, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
 from avsim.realism.settings import BASELINE
 
@@ -378,6 +378,7 @@ def _check_runs(board: Leaderboard) -> None:
         with located(board.path, f'run "{run.label}"'):
             check_run_names(run.config)
             check_networks(run.config)
+            check_renderer(run.config)
             required = run.config.scenario.stop_required
             if run.kind == SAFETY and not required:
                 raise ConfigError("this safety run has no stop to make (no stop sign facing the car); an attack "

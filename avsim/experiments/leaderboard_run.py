@@ -23,6 +23,7 @@ from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.spec import check_renderer
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
 
@@ -35,6 +36,7 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     it writes there); returns `out_dir`. rrd, mcap: which runs are recorded, under OUT/rrd/ and
     OUT/mcap/ (`avsim.experiments.recordings`)."""
     check_backend(backend, address)
+    check_renderer(board.base)  # a --setting's keys are in the base config, set after loading checked every run
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)

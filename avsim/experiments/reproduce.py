@@ -43,7 +43,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
-from avsim.experiments.spec import Experiment, check_networks, load_experiment
+from avsim.experiments.spec import Experiment, check_networks, check_renderer, load_experiment
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE, SETTINGS
 
@@ -95,6 +95,7 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     for experiment in experiments:
         for cell in experiment.cells:
             check_networks(cell.config)
+            check_renderer(cell.config)
     return experiments
 
 

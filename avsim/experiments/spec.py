@@ -297,6 +297,16 @@ def check_networks(config: SimConfig) -> None:
     check_networks_build(config.perception)
 
 
+def check_renderer(config: SimConfig) -> None:
+    """This machine's GL can draw the run's frames as its config asks (`camera.texture_anisotropy`): the
+    batch commands check every config they will run so, beside `check_networks`, and a GL that filters
+    less is refused in one line before the results folder is made, not by each run's renderer."""
+    # Imported here, as the networks are above: the GL bindings load only for a command that renders.
+    from avsim.sensors.gl import check_texture_anisotropy
+
+    check_texture_anisotropy(config.camera.texture_anisotropy)
+
+
 def check_run_names(config: SimConfig) -> Path | None:
     """Registry names (town, placement, policy, perception) and the sign texture, decoded as the
     scene will decode it (a PNG of a stop sign's square shape); returns the texture's resolved

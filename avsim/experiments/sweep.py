@@ -68,7 +68,7 @@ from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes,
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
 from avsim.experiments.run_task import RunSpec
-from avsim.experiments.spec import as_table, check_networks, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
+from avsim.experiments.spec import as_table, check_networks, check_renderer, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
 
@@ -237,6 +237,7 @@ def _parse_grid(raw: Any, base: SimConfig) -> tuple[tuple[str, tuple[Scalar, ...
             config = with_overrides(base, nested(key, value))  # unknown key, wrong type, out of range
             texture = check_run_names(config)
             check_networks(config)
+            check_renderer(config)
             held = _lookup(config, key)
             if held in checked:
                 raise ConfigError(f"'{key}' lists the value {value!r} twice")
@@ -282,6 +283,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     off, the backend cannot run (Ray not installed), or another command holds `out_dir`.
     """
     check_backend(backend, address)
+    check_renderer(sweep.base)  # a --setting's keys are in the base config, set after loading checked every point
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from avsim.realism.frame_set import DEFAULT_MAX_DIST_M, SceneDraw, render_scene, scene_draws
 from avsim.realism.scoring import build_networks, score_frame
 from avsim.realism.settings import RenderSetting
-from avsim.sensors.gl import check_offscreen_rendering
+from avsim.config import SimConfig, with_overrides
+from avsim.sensors.gl import check_offscreen_rendering, check_texture_anisotropy
 from avsim.workers import init_worker, terminate_workers
 
 _WORKER: dict = {}
@@ -64,6 +65,8 @@ def run_benchmark(plan: BenchmarkPlan, workers: int) -> list[dict]:
     from tqdm import tqdm
 
     check_offscreen_rendering()  # no EGL: one line, before the progress bar and the workers
+    for setting in plan.settings:  # so is a GL that filters less than a setting asks
+        check_texture_anisotropy(with_overrides(SimConfig(), setting.config_overrides()).camera.texture_anisotropy)
     jobs = [(setting, scene, plan.threshold, plan.max_dist_m) for setting, scene in plan.jobs()]
     rows: list[dict] = []
     # Built here first, whatever the workers: missing or corrupt weights are refused in one line

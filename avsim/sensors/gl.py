@@ -7,6 +7,7 @@ the raw id-colour image and lets callers decode only the geoms they need.
 
 from __future__ import annotations
 
+import functools
 import os
 
 import mujoco
@@ -68,6 +69,35 @@ def check_offscreen_rendering() -> None:
         raise _cannot_render(exc) from None
 
 
+@functools.cache
+def _gl_limits() -> tuple[float, str] | None:
+    """(the most anisotropy this process's GL filters a texture at, its renderer's name), read once a process
+    from a 1x1 context that is freed again; None where no context starts here (`check_offscreen_rendering`
+    says so where the runs render on this machine; a Ray cluster's runs render on its own)."""
+    try:
+        context = mujoco.GLContext(1, 1)
+        context.make_current()
+    except Exception:  # the GL backends raise several unrelated types
+        return None
+    try:
+        return float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY)), (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
+    finally:
+        context.free()
+
+
+def _too_much_anisotropy(ratio: int, most: float, renderer_name: str) -> RenderError:
+    return RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {most:g}:1 "
+                       f"({renderer_name}); set camera.texture_anisotropy to 1")
+
+
+def check_texture_anisotropy(ratio: int) -> None:
+    """A one-line RenderError where this machine's GL cannot filter textures at `ratio`:1
+    (`camera.texture_anisotropy`), so that a batch refuses before its first run, not at each run's renderer."""
+    limits = _gl_limits() if ratio > 1 else None
+    if limits is not None and limits[0] < ratio:
+        raise _too_much_anisotropy(ratio, *limits)
+
+
 class OffscreenRenderer:
     """Renders a model's fixed cameras to (H, W, 3) uint8 arrays, row 0 at the top.
 
@@ -118,8 +148,7 @@ class OffscreenRenderer:
         if most < ratio:
             renderer_name = (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
             self.close()
-            raise RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {most:g}:1 "
-                              f"({renderer_name}); set camera.texture_anisotropy to 1")
+            raise _too_much_anisotropy(ratio, most, renderer_name)
         for i in range(self._con.ntexture):
             if self._con.textureType[i] == mujoco.mjtTexture.mjTEXTURE_2D:
                 GL.glBindTexture(GL.GL_TEXTURE_2D, int(self._con.texture[i]))

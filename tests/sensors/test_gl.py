@@ -7,7 +7,8 @@ import pytest
 
 from avsim.loop import ClosedLoop
 from avsim.errors import RenderError
-from avsim.sensors.gl import OffscreenRenderer, check_offscreen_rendering
+from avsim.sensors import gl
+from avsim.sensors.gl import OffscreenRenderer, check_offscreen_rendering, check_texture_anisotropy
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.signs import set_texture_data
 from helpers import make_config
@@ -174,3 +175,23 @@ def test_more_anisotropy_than_the_gl_offers_is_refused_in_one_line(monkeypatch):
     with pytest.raises(RenderError, match=r"filters at most 8:1 .*set camera.texture_anisotropy to 1") as err:
         OffscreenRenderer(model, 64, 48, segmentation=False, texture_anisotropy=16)
     assert "\n" not in str(err.value)
+
+
+def test_a_batch_checks_the_gl_anisotropy_limit_once_before_any_renderer(monkeypatch):
+    gl._gl_limits.cache_clear()
+    check_texture_anisotropy(16)  # llvmpipe, like most GPUs, filters up to 16:1
+    monkeypatch.setattr("avsim.sensors.gl.GL.glGetFloatv", lambda name: 4.0)
+    gl._gl_limits.cache_clear()
+    try:
+        check_texture_anisotropy(4)
+        with pytest.raises(RenderError, match=r"camera.texture_anisotropy = 8 but this GL filters at most 4:1") as err:
+            check_texture_anisotropy(8)
+        assert "\n" not in str(err.value)
+    finally:
+        gl._gl_limits.cache_clear()
+    # 1 is MuJoCo's own filtering: no context is started to check it, and a machine without one is left to
+    # the offscreen check (a Ray cluster's runs render on its machines).
+    monkeypatch.setattr("avsim.sensors.gl.mujoco.GLContext", _no_egl)
+    check_texture_anisotropy(1)
+    check_texture_anisotropy(16)
+    gl._gl_limits.cache_clear()

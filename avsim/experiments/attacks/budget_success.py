@@ -23,7 +23,7 @@ from avsim.experiments.plan import Plan
 from avsim.experiments.recordings import with_recordings
 from avsim.experiments.results_file import JsonlWriter
 from avsim.experiments.run_task import RunSpec
-from avsim.experiments.spec import Cell, Experiment, check_networks, load_experiment
+from avsim.experiments.spec import Cell, Experiment, check_networks, check_renderer, load_experiment
 
 CLEAN_CELL = "clean"
 
@@ -31,7 +31,9 @@ CLEAN_CELL = "clean"
 def load_protocol(path: str | Path) -> Experiment:
     """The experiment file whose "clean" cell is the protocol; a one-line ConfigError if it has none."""
     experiment = load_experiment(path)
-    check_networks(experiment.cell(CLEAN_CELL).config)  # the cell raises, naming the cells it has
+    protocol = experiment.cell(CLEAN_CELL).config  # the cell raises, naming the cells it has
+    check_networks(protocol)
+    check_renderer(protocol)
     return experiment
 
 
