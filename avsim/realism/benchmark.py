@@ -12,10 +12,10 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
+from avsim.config import SimConfig, with_overrides
 from avsim.realism.frame_set import DEFAULT_MAX_DIST_M, SceneDraw, render_scene, scene_draws
 from avsim.realism.scoring import build_networks, score_frame
 from avsim.realism.settings import RenderSetting
-from avsim.config import SimConfig, with_overrides
 from avsim.sensors.gl import check_offscreen_rendering, check_texture_anisotropy
 from avsim.workers import init_worker, terminate_workers
 
