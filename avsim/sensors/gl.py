@@ -80,9 +80,14 @@ def _gl_limits() -> tuple[float, str] | None:
     except Exception:  # the GL backends raise several unrelated types
         return None
     try:
-        return float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY)), (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
+        return _current_gl_limits()
     finally:
         context.free()
+
+
+def _current_gl_limits() -> tuple[float, str]:
+    """(the most anisotropy the current GL context filters a texture at, its renderer's name)."""
+    return float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY)), (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
 
 
 def _too_much_anisotropy(ratio: int, most: float, renderer_name: str) -> RenderError:
@@ -144,9 +149,8 @@ class OffscreenRenderer:
         MuJoCo uploads its textures once, with trilinear mip-maps; a texture's filter is its own GL
         state, read at every draw, so setting it here changes every later frame and nothing else.
         """
-        most = float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY))
+        most, renderer_name = _current_gl_limits()
         if most < ratio:
-            renderer_name = (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
             self.close()
             raise _too_much_anisotropy(ratio, most, renderer_name)
         for i in range(self._con.ntexture):
