@@ -20,6 +20,7 @@ import pytest
 import avsim.attacks.view_bank
 import avsim.loop
 from avsim import cli
+from avsim.sensors.gl import GLInfo
 from helpers import write_files
 
 REPO = Path(__file__).resolve().parents[1]
@@ -330,7 +331,7 @@ MORE_ANISOTROPY_THAN_THE_GL_OFFERS = {
 @pytest.mark.parametrize("case", list(MORE_ANISOTROPY_THAN_THE_GL_OFFERS.values()), ids=list(MORE_ANISOTROPY_THAN_THE_GL_OFFERS))
 def test_more_anisotropy_than_the_gl_offers_is_refused_before_the_first_run(case, tmp_path, capsys, monkeypatch, no_work):
     # Before: the batch started, and each run's renderer refused when it was built.
-    monkeypatch.setattr("avsim.sensors.gl._gl_limits", lambda: (8.0, "a GL of 8:1"))
+    monkeypatch.setattr("avsim.sensors.gl._gl_info", lambda: GLInfo("a GL of 8:1", "4.6", 8.0))
     _run_case(case, tmp_path, capsys, monkeypatch)
 
 

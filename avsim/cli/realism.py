@@ -34,6 +34,7 @@ def _max_dist_flag(text: str) -> int:
 def _cmd_realism(args: argparse.Namespace) -> int:
     from avsim.realism.benchmark import BenchmarkPlan, run_benchmark
     from avsim.realism.report import report, write_figure
+    from avsim.software import software_versions
     from avsim.world.towns import TOWNS
 
     towns = args.towns or TOWNS.names()
@@ -45,7 +46,7 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "frames.jsonl", "".join(json.dumps(row) + "\n" for row in rows))
-    text = report(rows, args.threshold)
+    text = report(rows, args.threshold, software_versions())
     write_text(out / "report.md", text)
     figure = temporary_path(out / "recall.png", ".png")
     write_figure(rows, figure)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, defaultdict
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -204,12 +205,16 @@ def cost_table(rows: list[dict]) -> list[str]:
     return lines
 
 
-def report(rows: list[dict], threshold: float) -> str:
+def report(rows: list[dict], threshold: float, versions: Mapping[str, str] | None = None) -> str:
     """The benchmark's Markdown report of its `rows` (one per frame and network) at detection
     `threshold`: each setting's render cost [ms], recall (Wilson 95% intervals), stop-sign AP at IoU
-    0.5 and false stop signs per frame, then recall against distance per network and camera."""
+    0.5 and false stop signs per frame, then recall against distance per network and camera.
+    versions: what drew and scored the frames (`avsim.software.software_versions`: the GL among them,
+    since a frame's pixels are those of the GL that drew it), said under the title."""
     n_frames = len({(r["setting"], r["town"], r["scene"], r["frame"]) for r in rows})
-    lines = [f"# Render realism benchmark ({n_frames} frames)", "",
+    ran_on = ([f"Drawn by {versions['gl']}; " + ", ".join(f"{k} {v}" for k, v in versions.items() if k != "gl") + ".", ""]
+              if versions else [])
+    lines = [f"# Render realism benchmark ({n_frames} frames)", "", *ran_on,
              f"Threshold {threshold}. Recall cells: signs found / signs in view (95 % Wilson interval); found = a "
              "`stop_sign` detection at or above the threshold overlapping the labelled sign with IoU >= 0.5. "
              "False stop signs: detections at or above the threshold centred on no labelled stop sign, on every frame "

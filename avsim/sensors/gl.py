@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import os
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -69,38 +70,59 @@ def check_offscreen_rendering() -> None:
         raise _cannot_render(exc) from None
 
 
+class GLInfo(NamedTuple):
+    """The GL a process renders with: its GL_RENDERER (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"), its GL_VERSION
+    (e.g. "4.5 (Compatibility Profile) Mesa 22.3.6"), and the most anisotropy it filters a texture at."""
+
+    renderer: str
+    version: str
+    max_anisotropy: float
+
+
 @functools.cache
-def _gl_limits() -> tuple[float, str] | None:
-    """(the most anisotropy this process's GL filters a texture at, its renderer's name), read once a process
-    from a 1x1 context that is freed again; None where no context starts here (`check_offscreen_rendering`
-    says so where the runs render on this machine; a Ray cluster's runs render on its own)."""
+def _gl_info() -> GLInfo | None:
+    """This process's GL, read once a process from a 1x1 context that is freed again; None where no context
+    starts here (`check_offscreen_rendering` says so where the runs render on this machine; a Ray cluster's
+    runs render on its own)."""
     try:
         context = mujoco.GLContext(1, 1)
         context.make_current()
     except Exception:  # the GL backends raise several unrelated types
         return None
     try:
-        return _current_gl_limits()
+        return _current_gl_info()
     finally:
         context.free()
 
 
-def _current_gl_limits() -> tuple[float, str]:
-    """(the most anisotropy the current GL context filters a texture at, its renderer's name)."""
-    return float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY)), (GL.glGetString(GL.GL_RENDERER) or b"?").decode()
+def _current_gl_info() -> GLInfo:
+    """The current GL context's renderer, version and anisotropy limit."""
+    def text(name: int) -> str:
+        return (GL.glGetString(name) or b"?").decode()
+
+    return GLInfo(text(GL.GL_RENDERER), text(GL.GL_VERSION), float(GL.glGetFloatv(_MAX_TEXTURE_MAX_ANISOTROPY)))
 
 
-def _too_much_anisotropy(ratio: int, most: float, renderer_name: str) -> RenderError:
-    return RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {most:g}:1 "
-                       f"({renderer_name}); set camera.texture_anisotropy to 1")
+def gl_description() -> str | None:
+    """"llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 (Compatibility Profile) Mesa 22.3.6": the GL that draws
+    this process's frames, for a batch's manifest and a report (None where no context starts here). Frames
+    are a function of the state on one GL; another GL, or another Mesa, may draw some pixels differently, and
+    under `camera.texture_anisotropy` filters textures in its own way (docs/realism.md)."""
+    info = _gl_info()
+    return None if info is None else f"{info.renderer}, OpenGL {info.version}"
+
+
+def _too_much_anisotropy(ratio: int, gl: GLInfo) -> RenderError:
+    return RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {gl.max_anisotropy:g}:1 "
+                       f"({gl.renderer}); set camera.texture_anisotropy to 1")
 
 
 def check_texture_anisotropy(ratio: int) -> None:
     """A one-line RenderError where this machine's GL cannot filter textures at `ratio`:1
     (`camera.texture_anisotropy`), so that a batch refuses before its first run, not at each run's renderer."""
-    limits = _gl_limits() if ratio > 1 else None
-    if limits is not None and limits[0] < ratio:
-        raise _too_much_anisotropy(ratio, *limits)
+    gl = _gl_info() if ratio > 1 else None
+    if gl is not None and gl.max_anisotropy < ratio:
+        raise _too_much_anisotropy(ratio, gl)
 
 
 class OffscreenRenderer:
@@ -115,7 +137,8 @@ class OffscreenRenderer:
         """cull: leave the geoms the camera cannot see out of each render, where that cannot change
         a pixel (`avsim.sensors.culling`); False draws every geom, as a check of it.
         texture_anisotropy: 1 keeps MuJoCo's trilinear mip-mapping; N > 1 filters every 2-D texture
-        anisotropically, up to N samples along a pixel's footprint (`camera.texture_anisotropy`)."""
+        anisotropically, up to N samples along a pixel's footprint (`camera.texture_anisotropy`), as the GL
+        implements it: llvmpipe (Mesa 22.3) weights every texel of the footprint's ellipse at any N > 1."""
         try:
             self._gl = mujoco.GLContext(width_px, height_px)
             self._gl.make_current()
@@ -149,10 +172,10 @@ class OffscreenRenderer:
         MuJoCo uploads its textures once, with trilinear mip-maps; a texture's filter is its own GL
         state, read at every draw, so setting it here changes every later frame and nothing else.
         """
-        most, renderer_name = _current_gl_limits()
-        if most < ratio:
+        gl = _current_gl_info()
+        if gl.max_anisotropy < ratio:
             self.close()
-            raise _too_much_anisotropy(ratio, most, renderer_name)
+            raise _too_much_anisotropy(ratio, gl)
         for i in range(self._con.ntexture):
             if self._con.textureType[i] == mujoco.mjtTexture.mjTEXTURE_2D:
                 GL.glBindTexture(GL.GL_TEXTURE_2D, int(self._con.texture[i]))

@@ -66,6 +66,7 @@ def test_manifest_and_a_copy_of_the_experiment_file(results):
     manifest = json.loads((results / "manifest.json").read_text())
     assert manifest["runs"] == 7 and manifest["failed"] == 0 and manifest["workers"] == 1
     assert manifest["versions"]["precision_auto"] in ("fp32", "bf16")  # what the default ran as
+    assert "OpenGL" in manifest["versions"]["gl"]  # what drew the frames
     assert (results / "experiments" / "table3_stop_positions.toml").read_text() == TINY_TABLE3
 
 

@@ -81,6 +81,15 @@ def test_the_report_covers_every_setting_and_network():
     assert f"| coco | photo | {two} | {one} | {two} | {one} | 0.000 (0/6) | 1.000 |" in text
 
 
+def test_the_report_names_the_gl_that_drew_its_frames():
+    # A frame's pixels are those of the GL that drew it: llvmpipe filters textures under
+    # camera.texture_anisotropy in its own way (docs/realism.md), so a report says which GL it was.
+    versions = {"mujoco": "4.0.0", "gl": "llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 Mesa 22.3.6"}
+    text = report(_grid_rows(), 0.5, versions)
+    assert "\nDrawn by llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 Mesa 22.3.6; mujoco 4.0.0.\n" in text
+    assert "Drawn by" not in report(_grid_rows(), 0.5)
+
+
 def test_the_paired_table_counts_signs_found_under_one_setting_only_frame_by_frame():
     # Frames 0-3 at 10-40 m: baseline finds 0 and 1, lens finds 1, 2 and 3 (gains 2 and 3, loses 0);
     # frame 4 at 45 m is found by both; frame 5 only by lens, but is a roadside view (not a sign frame).
