@@ -5,7 +5,7 @@ import math
 import pytest
 
 from avsim.realism.report import (ap_table, false_stop_by_distance_table, false_stop_table, paired_table, recall_table,
-                                  report, summary_table, write_figure)
+                                  report, summary_table, threshold_table, write_figure)
 from avsim.stats import rate_with_interval
 
 
@@ -52,6 +52,26 @@ def test_a_set_beyond_60_m_gets_its_own_bins_and_span():
     # Frames with at least one false stop sign: the 83 m frame's two boxes count once.
     assert by_distance[2] == (f"| coco | baseline | {rate_with_interval(0, 1)} | {rate_with_interval(0, 1)} | "
                               f"{rate_with_interval(1, 1)} | {rate_with_interval(0, 1)} |")
+
+
+def test_higher_thresholds_are_recounted_from_the_kept_scores_per_town():
+    # Two front signs found at 0.58 and 0.9; a crown's box at 0.52 and a sky's at 0.65; a side-camera sign and
+    # a 45 m sign are outside the front 10-40 m column.
+    rows = [_row(frame=0, false=[(0.52, 0, 0, 5, 5, "tree_right/crown", 0.3)]), _row(frame=1, dist_m=30.0),
+            _row(frame=2, camera="side"), _row(frame=3, dist_m=45.0), _row(frame=4, town="town10", found=False)]
+    rows[0]["best_score"] = 0.58
+    rows[1]["false_stop_signs"] = [[0.65, 0, 0, 5, 5, "sky", 0.0]]
+    table = threshold_table(rows, 0.5)
+    assert table[0] == ("| network | setting | town | front 10–40 m at 0.5 | false at 0.5 | front 10–40 m at 0.55 | false at 0.55 "
+                        "| front 10–40 m at 0.6 | false at 0.6 | front 10–40 m at 0.7 | false at 0.7 |")
+    town07 = [c.strip() for c in table[2].split("|")[1:-1]]
+    assert town07[:3] == ["coco", "baseline", "town07"]
+    assert town07[3:] == [rate_with_interval(2, 2), "0.500 (2)", rate_with_interval(2, 2), "0.250 (1)",
+                          rate_with_interval(1, 2), "0.250 (1)", rate_with_interval(1, 2), "0.000 (0)"]
+    assert table[3].startswith("| coco | baseline | town10 | " + rate_with_interval(0, 1))
+    # A run at 0.6 recounts only above it.
+    assert threshold_table(rows, 0.6)[0].count("false at") == 2
+    assert "## At higher thresholds" in report(rows, 0.5)
 
 
 def test_a_default_set_keeps_the_default_columns():
