@@ -131,6 +131,7 @@ def test_ctrl_c_during_a_sweep_says_how_to_resume_and_resuming_gives_the_same_re
     assert _temporaries(out) == []
 
 
+@pytest.mark.slow  # about 55 s: two reproductions with two workers each; the default pass keeps Ctrl-C during a run
 def test_ctrl_c_during_reproduce_stops_its_workers_and_the_command_it_names_finishes_the_reproduction(tmp_path):
     experiment = tmp_path / "table3_stop_positions.toml"
     experiment.write_text("""

@@ -128,6 +128,7 @@ def test_every_run_is_checked_when_the_file_loads(tmp_path, change, message):
 
 # ---- a small board, end to end -------------------------------------------------------------------
 
+@pytest.mark.slow  # about 50 s: a board of closed-loop runs, then its resumption
 def test_a_small_board_runs_writes_its_report_and_resumes_without_running_again(tmp_path, capsys):
     path = write(tmp_path, TINY)
     out = tmp_path / "out"
