@@ -295,7 +295,7 @@ class CameraConfig:
     # along both of a pixel's axes by its footprint's long one; N samples the footprint along its long axis
     # up to N:1 (anisotropic filtering), closer to what a photosite integrates on a facade seen edge-on.
     # How is the GL's own: llvmpipe (Mesa 22.3) filters each pixel's whole footprint (an elliptical
-    # Gaussian) at any N > 1, the same pixels from 2 to 16, at about 50-150x a frame's render time.
+    # Gaussian) at any N > 1, the same pixels from 2 to 16, at 50-100x a frame's render time (one Mesa thread).
     texture_anisotropy: int = 1
     # Lens blur: a Gaussian point-spread function with this MTF50 [cycles/px] (0: an ideal lens).
     lens_mtf50_cyc_per_px: float = ranged(0.0, 0, 1.0, unit="cycles/px")
