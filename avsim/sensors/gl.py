@@ -112,17 +112,17 @@ def gl_description() -> str | None:
     return None if info is None else f"{info.renderer}, OpenGL {info.version}"
 
 
-def _too_much_anisotropy(ratio: int, gl: GLInfo) -> RenderError:
-    return RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {gl.max_anisotropy:g}:1 "
-                       f"({gl.renderer}); set camera.texture_anisotropy to 1")
+def _too_much_anisotropy(ratio: int, info: GLInfo) -> RenderError:
+    return RenderError(f"camera.texture_anisotropy = {ratio} but this GL filters at most {info.max_anisotropy:g}:1 "
+                       f"({info.renderer}); set camera.texture_anisotropy to 1")
 
 
 def check_texture_anisotropy(ratio: int) -> None:
     """A one-line RenderError where this machine's GL cannot filter textures at `ratio`:1
     (`camera.texture_anisotropy`), so that a batch refuses before its first run, not at each run's renderer."""
-    gl = _gl_info() if ratio > 1 else None
-    if gl is not None and gl.max_anisotropy < ratio:
-        raise _too_much_anisotropy(ratio, gl)
+    info = _gl_info() if ratio > 1 else None
+    if info is not None and info.max_anisotropy < ratio:
+        raise _too_much_anisotropy(ratio, info)
 
 
 class OffscreenRenderer:
@@ -172,10 +172,10 @@ class OffscreenRenderer:
         MuJoCo uploads its textures once, with trilinear mip-maps; a texture's filter is its own GL
         state, read at every draw, so setting it here changes every later frame and nothing else.
         """
-        gl = _current_gl_info()
-        if gl.max_anisotropy < ratio:
+        info = _current_gl_info()
+        if info.max_anisotropy < ratio:
             self.close()
-            raise _too_much_anisotropy(ratio, gl)
+            raise _too_much_anisotropy(ratio, info)
         for i in range(self._con.ntexture):
             if self._con.textureType[i] == mujoco.mjtTexture.mjTEXTURE_2D:
                 GL.glBindTexture(GL.GL_TEXTURE_2D, int(self._con.texture[i]))
