@@ -177,7 +177,7 @@ def threshold_table(rows: list[dict], threshold: float) -> list[str]:
     thresholds = [threshold, *(t for t in HIGHER_THRESHOLDS if t > threshold)]
     lines = ["| network | setting | town | " + " | ".join(f"front 10–40 m at {t:g} | false at {t:g}" for t in thresholds) + " |",
              "|---|---|---|" + "---|---|" * len(thresholds)]
-    towns = _ordered({r["town"] for r in rows}, [])
+    towns = sorted({r["town"] for r in rows})
     for network in _ordered({r["network"] for r in rows}, list(NETWORKS)):
         for setting in _ordered({r["setting"] for r in rows}, list(SETTINGS)):
             for town in towns:
