@@ -7,7 +7,7 @@ import torch
 
 from avsim.perception.cpu_bf16 import auto_arithmetic
 from avsim.sensors import gl
-from avsim.software import NO_GL, software_versions
+from avsim.software import NO_GL, differences, software_versions, versions_sentence
 
 
 def test_the_versions_are_the_running_libraries_and_auto_is_what_it_runs_as_here():
@@ -30,3 +30,33 @@ def test_the_gl_that_draws_the_frames_is_recorded_by_its_renderer_and_version(mo
     # Where no context starts here (a Ray cluster's runs render on its machines), it says so.
     monkeypatch.setattr(gl, "_gl_info", lambda: None)
     assert software_versions()["gl"] == NO_GL
+
+
+def test_the_instruction_set_of_torchs_kernels_is_recorded():
+    assert software_versions()["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+
+
+HERE = {"python": "3.11.2", "mujoco": "4.0.0", "torch": "2.13.0", "numpy": "2.3.0", "machine": "x86_64, 2 cores",
+        "cpu_capability": "AVX2", "precision_auto": "fp32", "gl": "llvmpipe, OpenGL 4.5 Mesa 22.3.6"}
+
+
+def test_a_node_differs_only_in_what_decides_a_runs_numbers():
+    twin = {"node": "10.0.0.2", **HERE, "machine": "x86_64, 64 cores", "python": "3.11.9"}  # neither decides a number
+    other_gl = {"node": "10.0.0.3", **HERE, "gl": "NVIDIA H200, OpenGL 4.6"}
+    wider = {"node": "10.0.0.4", **HERE, "cpu_capability": "AVX512", "precision_auto": "bf16"}
+    silent = {"node": "10.0.0.5", "error": "no answer within 120 s"}
+    assert differences(HERE, [twin]) == []
+    assert differences(HERE, [twin, other_gl, wider, silent]) == [
+        "10.0.0.3 runs gl 'NVIDIA H200, OpenGL 4.6' (here 'llvmpipe, OpenGL 4.5 Mesa 22.3.6')",
+        "10.0.0.4 runs cpu_capability 'AVX512' (here 'AVX2'), precision_auto 'bf16' (here 'fp32')",
+        "10.0.0.5 did not say what it runs (no answer within 120 s)"]
+
+
+def test_a_reports_versions_sentence_names_the_cluster_where_the_runs_ran_on_one():
+    assert versions_sentence(HERE) == "Versions: " + ", ".join(f"{k} {v}" for k, v in HERE.items()) + "."
+    alike = versions_sentence(HERE, [{"node": "10.0.0.2", **HERE}, {"node": "10.0.0.3", **HERE}])
+    assert alike.startswith("Versions of this machine, which sent the runs out: python 3.11.2, ")
+    assert alike.endswith("They ran on 2 Ray nodes (manifest.json's cluster_nodes): each with these versions.")
+    unlike = versions_sentence(HERE, [{"node": "10.0.0.3", **HERE, "gl": "NVIDIA"}])
+    assert unlike.endswith("They ran on 1 Ray node (manifest.json's cluster_nodes): 10.0.0.3 runs gl 'NVIDIA' "
+                           "(here 'llvmpipe, OpenGL 4.5 Mesa 22.3.6').")

@@ -30,6 +30,7 @@ from avsim.experiments.run_task import config_hash
 from avsim.experiments.leaderboard import AVAILABILITY, CONDITIONS, SAFETY, Leaderboard, LeaderboardRun
 from avsim.metrics import PHANTOM_BRAKE_LEVEL, STOPPED_BEFORE_SIGN, is_phantom_brake, write_text_atomic
 from avsim.perception.factory import networks_per_frame
+from avsim.software import versions_sentence
 from avsim.stats import rate_with_interval, wilson_interval
 
 Record = dict[str, Any]
@@ -205,8 +206,8 @@ def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Iterable[L
         f"# {board.title}", "",
         f"`{manifest['command']}`, started {manifest['started_at']}: {manifest['runs']} runs of {manifest['configs']} distinct "
         f"configs ({manifest['ran']} run now, {manifest['reused']} reused, {manifest['failed']} failed) with "
-        f"{manifest['workers']} worker(s) in {manifest['wall_s'] / 60:.1f} min. Versions: "
-        + ", ".join(f"{k} {v}" for k, v in manifest["versions"].items()) + ".", "",
+        f"{manifest['workers']} worker(s) in {manifest['wall_s'] / 60:.1f} min. "
+        + versions_sentence(manifest["versions"], manifest.get("cluster_nodes")), "",
         "**Safety under attack**: runs under the strongest non-adaptive attack and the defence's own adaptive attack, "
         "in every place and seed, that stopped with the bumper at or before the sign, with the Wilson 95 % interval. "
         f"**Availability**: 1 − the phantom-brake rate, the runs where no stop is required with a brake command above "

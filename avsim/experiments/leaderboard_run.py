@@ -17,6 +17,7 @@ from pathlib import Path
 from avsim.errors import RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
 from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.leaderboard_report import write_leaderboard_report
@@ -63,6 +64,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
     out.mkdir(parents=True, exist_ok=True)
     if board.path.resolve() != (out / "leaderboard.toml").resolve():
         shutil.copy2(board.path, out / "leaderboard.toml")
+    nodes = cluster_nodes(backend, address)
     records, ran = run_resumable(plan, results_path, existing, resume_command=f"{command} --resume", workers=workers,
                                  progress=progress, description="leaderboard", backend=backend, address=address,
                                  batch=batch)
@@ -81,6 +83,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
         "reused": len(records) - ran,
         "failed": sum(1 for r in records if r["status"] == "failed"),
         "versions": software_versions(),
+        "cluster_nodes": nodes,
     }
     write_json_atomic(out / "manifest.json", manifest)
     write_leaderboard_report(out, board, board.iter_runs(quick), records, manifest)

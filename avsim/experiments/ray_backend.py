@@ -26,6 +26,12 @@ addresses need `pip install 'ray[client]'` as well. A cluster with token authent
 default for clusters Ray 2.60 starts) is joined with `RAY_AUTH_MODE=token` and the cluster's
 token in `~/.ray/auth_token` (or `RAY_AUTH_TOKEN`). Ray keeps retrying an address where no
 cluster answers; stop it with Ctrl-C.
+
+What a cluster's runs ran on: a batch's manifest describes this machine (`avsim.software.software_versions`),
+and a cluster's nodes render and infer with their own GL, CPU and libraries. So before a batch at an address,
+`cluster_nodes` asks every node that can take a run what it runs; the manifest keeps the answers
+(`cluster_nodes`), and a node whose GL, instruction set, arithmetic or library versions differ from this
+machine's is a warning: a run's numbers may then depend on the node that ran it.
 """
 
 from __future__ import annotations
@@ -35,12 +41,14 @@ import os
 import socket
 import subprocess
 import sys
+import warnings
 from collections.abc import Iterator
 from typing import Any
 
 from avsim.errors import ConfigError
 from avsim.experiments.plan import Group, in_flight, specs_of
 from avsim.experiments.run_task import execute_group, failed_record, worker_env
+from avsim.software import differences, software_versions
 
 INSTALL_HINT = "pip install 'avsim[ray]'"
 # Times Ray reruns a task whose worker process died before the run is recorded as failed.
@@ -159,3 +167,60 @@ def ray_results(groups: Iterator[Group], root: str | None, *, workers: int | Non
 def _first_line(exc: BaseException) -> str:
     lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
     return lines[0] if lines else "no message"
+
+
+# How long the nodes may take to say what they run [s]: a node's first task starts a Python that imports
+# torch and MuJoCo and opens a GL context, a few seconds on a warm node.
+NODE_PROBE_TIMEOUT_S = 120.0
+
+
+def _this_node() -> dict[str, str]:
+    """Run on a node: its IP address and what it runs (`avsim.software.software_versions`)."""
+    import ray
+
+    return {"node": ray.util.get_node_ip_address(), **software_versions()}
+
+
+def node_versions(address: str | None, timeout_s: float = NODE_PROBE_TIMEOUT_S) -> list[dict[str, str]]:
+    """What each live node of the Ray cluster at `address` that has CPUs for a run runs, sorted by node.
+
+    One entry a node: {"node": its IP, then `software_versions()`'s keys, as read on that node}, or
+    {"node": ..., "error": why it did not answer} for a node whose probe failed or took over `timeout_s`.
+    address None: the session already started in this process (a local cluster: this machine).
+    """
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    with session(address, None) as ray:
+        nodes = [n for n in ray.nodes() if n.get("Alive") and n.get("Resources", {}).get("CPU", 0) > 0]
+        # No CPU asked, so a node whose CPUs are all taken still answers.
+        probe = ray.remote(num_cpus=0, max_retries=0)(_this_node)
+        refs = [probe.options(scheduling_strategy=NodeAffinitySchedulingStrategy(n["NodeID"], soft=False)).remote()
+                for n in nodes]
+        ready, _ = ray.wait(refs, num_returns=len(refs), timeout=timeout_s)
+        answers = []
+        for node, ref in zip(nodes, refs):
+            name = node.get("NodeManagerAddress", node["NodeID"])
+            if ref not in ready:
+                ray.cancel(ref, force=True)
+                answers.append({"node": name, "error": f"no answer within {timeout_s:g} s"})
+                continue
+            try:
+                answers.append(ray.get(ref))
+            except ray.exceptions.RayError as exc:
+                answers.append({"node": name, "error": f"{type(exc).__name__}: {_first_line(exc)}"})
+    return sorted(answers, key=lambda answer: answer["node"])
+
+
+def cluster_nodes(backend: str, address: str | None) -> list[dict[str, str]] | None:
+    """For a batch about to run on the Ray cluster at `address`: what each node runs (`node_versions`), for
+    the manifest; a warning where a node differs from this machine (`differences`). None where the runs
+    run on this machine (the local backend, or a local Ray cluster), whose manifest `versions` describes them."""
+    if backend != "ray" or address is None:
+        return None
+    nodes = node_versions(address)
+    phrases = differences(software_versions(), nodes)
+    if phrases:
+        warnings.warn(f"the Ray cluster at {address} is not this machine's twin: {'; '.join(phrases)}; a run's numbers "
+                      "may then depend on the node that ran it (the manifest's cluster_nodes lists every node)",
+                      stacklevel=2)
+    return nodes

@@ -34,6 +34,7 @@ from pathlib import Path
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.results_file import read_records
@@ -184,6 +185,7 @@ def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dic
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
+    nodes = cluster_nodes(backend, address)
     # Runs are matched by name as well as config: two experiment files may share a config.
     records, ran = run_resumable(plan, out / "runs.jsonl", existing, by_run=True, workers=workers, progress=progress,
                                  resume_command=" ".join(filter(None, ("avsim reproduce", selection, f"--resume {out}"))),
@@ -203,6 +205,7 @@ def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dic
         "experiments": {e.path.stem: {"title": e.title, "seeds": e.seeds, "cells": [c.name for c in e.cells]}
                         for e in experiments},
         "versions": software_versions(),
+        "cluster_nodes": nodes,
         "history": history,
     }
     write_json_atomic(out / "manifest.json", manifest)

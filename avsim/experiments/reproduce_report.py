@@ -25,6 +25,7 @@ from avsim.experiments.report_sections import (adaptive_answer, attack_success_s
                                                sensitivity_section, stop_rates)
 from avsim.experiments.spec import Experiment
 from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
+from avsim.software import versions_sentence
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
 # Frames where the sign is within the perception's range (16 px) in every placement: the clean
@@ -209,8 +210,8 @@ def write_report(out_dir: Path, experiments: Sequence[Experiment], records: Sequ
     lines = [
         "# avsim: the study, reproduced", "",
         f"`{manifest['command']}`, started {manifest['started_at']}: {manifest['runs']} runs ({manifest['failed']} failed) "
-        f"with {manifest['workers']} worker(s) in {manifest['wall_s'] / 60:.1f} min. Versions: "
-        + ", ".join(f"{k} {v}" for k, v in manifest["versions"].items()) + ".", "",
+        f"with {manifest['workers']} worker(s) in {manifest['wall_s'] / 60:.1f} min. "
+        + versions_sentence(manifest["versions"], manifest.get("cluster_nodes")), "",
         "Each cell is run over its seeds (start position and lighting vary) and reported as mean ± std. "
         "Every run has a line in `runs.jsonl`; its `rrd` key names its rerun recording where one was asked for "
         "(`--rrd`, by default the runs whose car failed), and any run is recorded afterwards, bit for bit, with "

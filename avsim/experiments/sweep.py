@@ -61,6 +61,7 @@ from avsim.config_owners import check_read_by_some, dotted_keys, identical_runs,
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
@@ -312,6 +313,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
         shutil.copy2(sweep.path, out / "sweep.toml")
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     setting = f" --setting {sweep.setting}" if sweep.setting != BASELINE else ""
+    nodes = cluster_nodes(backend, address)
     records, ran = run_resumable(plan, results_path, existing,
                                  resume_command=f"avsim sweep {sweep.path} --out {out}{setting}{recording_flags(rrd, mcap)} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
@@ -337,6 +339,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
         "grid": {key: list(values) for key, values in sweep.grid},
         "seeds": sweep.seeds,
         "versions": software_versions(),
+        "cluster_nodes": nodes,
         "history": history,
     }
     write_json_atomic(out / "manifest.json", manifest)

@@ -30,6 +30,7 @@ from typing import Any
 from avsim.config import SimConfig
 from avsim.errors import ConfigError
 from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
+from avsim.software import versions_sentence
 
 SPEED_KEY, SIGN_KEY, POLICY_KEY = "scenario.speed_kmh", "scenario.sign", "policy.name"
 FIGURE_FILE = "safety_map.png"
@@ -209,7 +210,8 @@ def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], fron
         f"{manifest['ran']} run now and {manifest['reused']} reused, in {manifest['wall_s']:.0f} s {_ran_on(manifest)}"
         + (f" ({len(manifest['history'])} earlier invocation(s) in manifest.json)" if manifest.get("history") else "")
         + f"; the runs' own wall times add up to {_run_seconds(records):.0f} s. "
-        f"Grid speeds [km/h]: {', '.join(f'{s:g}' for s in smap.speeds_kmh)}.", "",
+        f"Grid speeds [km/h]: {', '.join(f'{s:g}' for s in smap.speeds_kmh)}. "
+        + versions_sentence(manifest["versions"], manifest.get("cluster_nodes")), "",
         "## Highest speed at which the car stops before the sign [km/h]", "",
         "A speed counts when every run at it stopped before the sign (outcome stopped_before_line or "
         f"stopped_past_line). \"none\": not even at {lowest:g} km/h. A `*` marks a gap: some lower speed did not stop "

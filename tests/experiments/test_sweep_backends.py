@@ -32,6 +32,7 @@ def test_ray_on_a_local_two_cpu_cluster_gives_the_records_of_the_local_backend(t
     assert _without_wall_time(ray_records) == _without_wall_time(local_records)
     manifest = json.loads((on_ray / "manifest.json").read_text())
     assert (manifest["backend"], manifest["address"], manifest["workers"], manifest["failed"]) == ("ray", None, 2, 0)
+    assert manifest["cluster_nodes"] is None  # a local cluster runs on this machine, which `versions` describes
     assert "--backend ray" in manifest["command"]
     assert "with 2 Ray workers" in (on_ray / "summary.md").read_text()
 
