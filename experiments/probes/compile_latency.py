@@ -4,8 +4,8 @@ Issue 25 asks for the detector closed loop at 5x real time and the COCO closed l
 networks are 44 % (own detector, bf16) and 85 % (COCO CenterNet, bf16) of a step (docs/performance.md).
 torch.compile fuses a network's elementwise ops into generated C++ loops and can fold its weights
 (`torch._inductor.config.freezing`), which eager mode cannot. This probe measures, at one thread, for each
-network on its deployed input in bf16 as deployed (a Town07 front frame 30 m before the sign, the input made
-from its front region as each runner makes it):
+network on its deployed input in its default arithmetic ("auto": bf16 where the CPU has bf16 kernels, fp32 on
+others; a Town07 front frame 30 m before the sign, the input made from its front region as each runner makes it):
 
 - the CPU time of one forward pass, eager and compiled (medians of 15 after 3 warm-up calls);
 - the time of the first compiled call (the compile), with Inductor's caches empty, as a fresh worker pays it;
@@ -31,6 +31,7 @@ from avsim.loop import ClosedLoop
 from avsim.perception.coco.bf16 import Bf16CenterNet
 from avsim.perception.coco.model import load_centernet
 from avsim.perception.coco.preprocess import image_tensor, network_input
+from avsim.perception.cpu_bf16 import auto_arithmetic
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.letterbox import to_tensor
 from avsim.perception.detector.roi import crop_for
@@ -87,14 +88,16 @@ def main() -> None:
     loop.close()
     region = regions_px(config.perception, config.camera)["front"]
 
-    runner = SignDetectorRunner(SHIPPED_WEIGHTS, num_threads=1, precision="bf16")
+    arithmetic = auto_arithmetic()
+    runner = SignDetectorRunner(SHIPPED_WEIGHTS, num_threads=1, precision=arithmetic)
     x0, y0, x1, y1 = crop_for(region, frame.shape[1], frame.shape[0])  # the front region and its context
     crop = to_tensor(frame[y0:y1, x0:x1]).unsqueeze(0)
 
-    coco = Bf16CenterNet(load_centernet())
+    coco = Bf16CenterNet(load_centernet()) if arithmetic == "bf16" else load_centernet()
     upscaled, _ = network_input(image_tensor(frame), "upscale", region, config.perception.coco_upscale)
-    compare({f"own detector, bf16 autocast, {x1 - x0}x{y1 - y0} crop": (lambda x: runner._maps(x), crop),
-             f"COCO CenterNet, bf16, {upscaled.shape[3]}x{upscaled.shape[2]} (upscale)": (coco, upscaled)})
+    print(f"arithmetic: {arithmetic} (auto on this CPU; torch's kernels: {torch.backends.cpu.get_cpu_capability()})")
+    compare({f"own detector, {arithmetic}, {x1 - x0}x{y1 - y0} crop": (lambda x: runner._maps(x), crop),
+             f"COCO CenterNet, {arithmetic}, {upscaled.shape[3]}x{upscaled.shape[2]} (upscale)": (coco, upscaled)})
 
 
 if __name__ == "__main__":
