@@ -36,6 +36,15 @@ def _png_header(width: int, height: int) -> bytes:
     return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0" * 64)) + chunk(b"IEND", b"")
 
 
+def _noise_png(width: int, height: int) -> bytes:
+    """A whole PNG of random pixels (so that half of it leaves its image data cut short)."""
+    import cv2
+    import numpy as np
+
+    pixels = np.random.default_rng(0).integers(0, 255, (height, width, 3), dtype=np.uint8)
+    return cv2.imencode(".png", pixels)[1].tobytes()
+
+
 def _gif_header(width: int, height: int) -> bytes:
     return b"GIF89a" + struct.pack("<HH", width, height) + b"\x00\x00\x00;"
 
@@ -183,6 +192,10 @@ LATE = {
                                                        files={"w.pt": b"not a checkpoint"}),
     "run --sign a folder": Case(["run", *ORACLE, "--sign", "{tmp}/signs/"], "is a folder", files={"signs/keep": ""}),
     "detect a folder": Case(["detect", "{tmp}/imgs"], "is a folder", files={"imgs/keep": ""}),
+    # Before: the first image's line was printed, then the second stopped the command.
+    "detect: a whole image, then one cut short": Case(["detect", "{tmp}/whole.png", "{tmp}/cut.png"], "cut.png",
+                                                      files={"whole.png": _noise_png(64, 48),
+                                                             "cut.png": _noise_png(64, 48)[:4000]}),
     "detector eval --limit -1": Case(["detector", "eval", "--limit", "-1", "--out", "{tmp}/ev"], "--limit"),
     "make-data --images-per-scene 0": Case(["detector", "make-data", "--images-per-scene", "0", "--out", "{tmp}/d"],
                                            "images_per_scene"),

@@ -340,7 +340,10 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         raise ConfigError(f"--from {path} is a folder; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
     except OSError as exc:
         raise ConfigError(f"--from {path}: cannot read it ({exc.strerror})") from None
-    except (json.JSONDecodeError, KeyError, TypeError, AttributeError) as exc:
+    except KeyError as exc:
+        raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` (it has no "
+                          f"'{exc.args[0]}' field)") from None
+    except (json.JSONDecodeError, TypeError, AttributeError) as exc:
         raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` ({exc!r})") from None
     if "weights_sha256" not in record:
         # A record from before the drive-by rework: the generator that wrote it (its view bank, EOT

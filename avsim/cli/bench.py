@@ -27,8 +27,9 @@ def add_commands(sub) -> None:
     """Add `avsim bench` to the subcommands `sub`."""
     bench = sub.add_parser("bench", help="print physics, rendering and closed-loop speed on this machine")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
-    bench.add_argument("--profile", action="store_true",
-                       help="where one run's and one batch's time goes, stage by stage, beside the speed targets")
-    bench.add_argument("--recording", action="store_true",
-                       help="only what --rrd and --mcap add to a run: wall time and file size (docs/recording.md)")
+    only = bench.add_mutually_exclusive_group()  # each prints one measurement instead of the whole bench
+    only.add_argument("--profile", action="store_true",
+                      help="where one run's and one batch's time goes, stage by stage, beside the speed targets")
+    only.add_argument("--recording", action="store_true",
+                      help="only what --rrd and --mcap add to a run: wall time and file size (docs/recording.md)")
     bench.set_defaults(func=_cmd_bench)

@@ -38,14 +38,19 @@ def _cmd_export(args: argparse.Namespace) -> int:
         from avsim.perception.detector.export_onnx import export_onnx
         from avsim.perception.detector.weights import resolve_weights_path
 
-        out = check_output_file(args.out or "models/sign_detector.onnx", "--out")  # the default is checked too
+        # The default is checked too; an ONNX file under another ending would be read as something else.
+        out = check_output_file(args.out or "models/sign_detector.onnx", "--out (--format onnx)", suffix=".onnx")
         path = export_onnx(resolve_weights_path(args.checkpoint or ""), out)
     else:
         from avsim.perception.detector.weights import export_weights
 
         if not args.checkpoint:
             raise ConfigError("avsim detector export --format pt needs --checkpoint (written by `avsim detector train`)")
-        path = export_weights(args.checkpoint, check_output_file(args.out or "models/sign_detector.pt", "--out"))
+        out = check_output_file(args.out or "models/sign_detector.pt", "--out")
+        if out.suffix.lower() == ".onnx":  # PyTorch weights (.pt, .pth) that `--perception onnx` would refuse as corrupt
+            raise ConfigError(f"--out '{out}' ends in .onnx, and --format pt writes PyTorch weights; add --format onnx, "
+                              "or give --out a .pt ending")
+        path = export_weights(args.checkpoint, out)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return 0
 

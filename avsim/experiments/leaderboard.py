@@ -279,6 +279,7 @@ def _condition(raw: Any, where: str) -> Condition:
     if not isinstance(note, str):
         raise ConfigError(f"'{where}.note' must be a string, got {note!r}")
     reject_seed(overrides)
+    with_overrides(SimConfig(), overrides)  # an unknown key or a bad value, named with its place in the file
     return Condition(overrides, note)
 
 
@@ -296,6 +297,7 @@ def _parse_defence(path: Path, index: int, raw: Any) -> Defence:
                               "adaptive = { scenario = { sign = \"adaptive\" } }")
         adaptive = _condition(overrides.pop("adaptive"), "adaptive")
         reject_seed(overrides)
+        with_overrides(SimConfig(), overrides)  # an unknown key or a bad value, named with its defence
         return Defence(name, about, overrides, Condition(adaptive.overrides, adaptive_note))
 
 

@@ -44,7 +44,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
-from avsim.experiments.spec import Experiment, check_networks, check_renderer, load_experiment
+from avsim.experiments.spec import Experiment, check_networks, check_renderer, check_run_names, load_experiment, located
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE, SETTINGS
 
@@ -95,6 +95,10 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
     for experiment in experiments:
         for cell in experiment.cells:
+            # The sign texture too: a file may name one that is written after it (an attack's), but by now
+            # every run needs it, and a missing or broken one would fail each run after the folder is made.
+            with located(experiment.path, f'cell "{cell.name}"'):
+                check_run_names(cell.config)
             check_networks(cell.config)
             check_renderer(cell.config)
     return experiments
@@ -150,6 +154,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     if resume is not None:
         out = Path(resume)
         existing = resumable_records(out)
+        check_resumed_selection(out, experiments, yes=yes)
     else:
         out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
         existing = []
@@ -164,6 +169,23 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         return _reproduce_into(out, experiments, existing, selection=selection, workers=workers, progress=progress,
                                backend=backend, address=address, started=started, started_at=started_at, batch=batch,
                                rrd=rrd, mcap=mcap, resumed=resume is not None)
+
+
+def check_resumed_selection(folder: Path, experiments: list[Experiment], *, yes: bool) -> None:
+    """A one-line ConfigError when a `--resume FOLDER` would add experiment files to FOLDER, unless `yes`.
+
+    FOLDER/experiments/ holds a copy of every file whose runs the folder has, made before the first of them.
+    A file outside that set is new work, perhaps hours of it: a bare `--resume` on a folder made with
+    `--experiments` would start the whole study there. So adding files takes `yes`; the same files, or fewer
+    (whose other records are kept), or files changed since (whose changed cells run again) do not.
+    """
+    held = {path.name for path in (folder / "experiments").glob("*.toml")}
+    added = sorted({experiment.path.name for experiment in experiments} - held)
+    if held and added and not yes:
+        raise ConfigError(f"--resume {folder}: that folder reproduces {' '.join(sorted(held))} (its experiments/), and "
+                          f"this command adds {' '.join(added)}; resume it with the selection that made it (the "
+                          "command Ctrl-C printed, e.g. --experiments naming those files), or add --yes to run the "
+                          "added files into it")
 
 
 def resumable_records(folder: Path) -> list[dict]:

@@ -167,6 +167,9 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not a text TOML file (byte {exc.start} is not UTF-8); give the {kind} file "
                           f"as TOML text, like those in experiments/") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path} is a folder; give the {kind} file itself (a .toml file, like those in "
+                          f"{'experiments/sweeps/' if kind == 'sweep' else 'experiments/'})") from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read {kind} file ({exc.strerror})") from None
 

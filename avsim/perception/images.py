@@ -15,10 +15,14 @@ from avsim.perception.factory import build_frame_detector
 
 
 def _check_readable(paths: list[Path]) -> None:
+    """Every file decodes, or a one-line ImageError before the first record is printed. Each image is decoded
+    here and again for its turn, not kept: the second decode costs little beside the network, and a long list
+    of photos held at once could fill the memory."""
     for path in paths:
         check_image_file(path)  # a folder, a missing file, a decompression bomb: one line
         if not cv2.haveImageReader(str(path)):
             raise ImageError(f"{path} is not an image OpenCV can read; pass PNG, JPEG or another common format")
+        read_rgb(path)  # a file cut short or corrupt past its header
 
 
 def read_rgb(path: Path) -> np.ndarray:

@@ -84,7 +84,7 @@ def test_closed_loop_methods_get_the_closed_loop_bank_and_sensor():
 def test_a_record_from_elsewhere_is_refused_in_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"method": "lu_v2"}))
-    with pytest.raises(ConfigError, match="not a texture record"):
+    with pytest.raises(ConfigError, match="not a texture record .* has no 'seed' field"):
         read_recipe(bad)
     code = cli.main(["attack", "generate", "--from", str(bad), "--out", str(tmp_path / "x.png")])
     err = capsys.readouterr().err.splitlines()

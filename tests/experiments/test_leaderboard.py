@@ -118,6 +118,12 @@ def test_every_shipped_defence_faces_an_adaptive_attack_of_its_own():
     (("scenario = { sign = \"yang\" }\n[[defences]]", "scenario = { sign = \"nosuchtexture\" }\n[[defences]]"),
      "unknown sign texture"),
     (("[conditions.clean]", "[conditions.dirty]\nscenario = {}\n[conditions.clean]"), "unknown condition 'dirty'"),
+    # A bad key is named with its place in the file, not only the key.
+    (("policy = { name = \"map_prior\" }", "policy = { name = \"map_prior\", bogus = 1 }"),
+     r"defences\[1\] \"map_prior\": unknown config key 'policy.bogus'"),
+    (("[conditions.strongest]\nnote = \"stand-in\"\nscenario = { sign = \"yang\" }",
+      "[conditions.strongest]\nnote = \"stand-in\"\nscenario = { sign = \"yang\", bogus = 1 }"),
+     r"\[conditions\]: unknown config key 'scenario.bogus'"),
 ])
 def test_every_run_is_checked_when_the_file_loads(tmp_path, change, message):
     old, new = change

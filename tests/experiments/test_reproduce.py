@@ -6,9 +6,10 @@ import shutil
 import pytest
 
 from avsim import cli
+from avsim.errors import ConfigError
 from avsim.experiments.recordings import slug
 from avsim.experiments.reproduce import (EXPERIMENTS_DIR, MORE_EXPERIMENTS, STUDY_EXPERIMENTS, YOLO_EXPERIMENTS,
-                                          load_study, reproduce)
+                                          check_resumed_selection, load_study, reproduce)
 from avsim.experiments.results_file import encode, read_records
 
 # The study's Table III cell names, so the report sets them beside the study's figures.
@@ -144,6 +145,42 @@ def test_a_bad_resume_fails_in_one_line_and_writes_nothing(tmp_path, capsys, arg
     assert sorted(tmp_path.rglob("*")) == before
 
 
+def _folder_of(tmp_path, *names):
+    """What a reproduction of `names` leaves before its first record: the copies of its files, an empty runs.jsonl."""
+    folder = tmp_path / "folder"
+    (folder / "experiments").mkdir(parents=True)
+    for name in names:
+        (folder / "experiments" / name).write_text(TINY_TABLE3)
+    (folder / "runs.jsonl").write_text("")
+    return folder
+
+
+def test_a_resume_that_would_add_experiment_files_to_a_folder_is_refused_before_any_run(tmp_path, capsys):
+    # A folder made with --experiments, resumed without them: the whole study would start in it.
+    folder = _folder_of(tmp_path, "mine.toml")
+    before = sorted(tmp_path.rglob("*"))
+    code = cli.main(["reproduce", "--resume", str(folder), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert f"--resume {folder}: that folder reproduces mine.toml (its experiments/), and this command adds " in err
+    assert "table3_stop_positions.toml" in err and "--yes" in err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_a_resume_of_the_same_files_or_fewer_needs_no_yes_and_more_files_need_it(tmp_path):
+    (tmp_path / "a.toml").write_text(TINY_TABLE3)
+    (tmp_path / "b.toml").write_text(TINY_TABLE3)
+    a, b = (load_study([tmp_path / name]) for name in ("a.toml", "b.toml"))
+    both = load_study([tmp_path / "a.toml", tmp_path / "b.toml"])
+    folder = _folder_of(tmp_path, "a.toml", "b.toml")
+    for experiments in (both, a, b):
+        check_resumed_selection(folder, experiments, yes=False)
+    with pytest.raises(ConfigError, match="adds b.toml"):
+        check_resumed_selection(_folder_of(tmp_path / "x", "a.toml"), both, yes=False)
+    check_resumed_selection(_folder_of(tmp_path / "y", "a.toml"), both, yes=True)
+    check_resumed_selection(_folder_of(tmp_path / "z"), both, yes=False)  # a folder from before its copies: unchecked
+
+
 def test_quick_keeps_one_seed_per_cell(tmp_path):
     experiment = tmp_path / "table3_stop_positions.toml"
     experiment.write_text(TINY_TABLE3)
@@ -260,6 +297,21 @@ def test_zero_workers_is_refused_before_a_results_folder_is_made(tmp_path, capsy
     assert not (tmp_path / "results").exists()
 
 
+@pytest.mark.parametrize("sign, mention", [("nosuchtexture", "unknown sign texture 'nosuchtexture'"),
+                                           ("FAKE_PNG", "fake.png")])
+def test_a_missing_or_broken_sign_texture_is_refused_before_a_results_folder_is_made(tmp_path, capsys, sign, mention):
+    (tmp_path / "fake.png").write_text("not a png")
+    sign = str(tmp_path / "fake.png") if sign == "FAKE_PNG" else sign
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3.replace('town = "town07",', f'town = "town07", sign = "{sign}",'))
+    code = cli.main(["reproduce", "--experiments", str(experiment), "--workers", "1", "--no-progress",
+                     "--out", str(tmp_path / "results")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert f"{experiment}: cell " in err and "scenario.sign" in err and mention in err
+    assert not (tmp_path / "results").exists()
+
+
 def test_reproduce_on_a_dead_ray_address_is_refused_before_a_results_folder_is_made(tmp_path, capsys):
     pytest.importorskip("ray")
     experiment = tmp_path / "table3_stop_positions.toml"
@@ -270,11 +322,16 @@ def test_reproduce_on_a_dead_ray_address_is_refused_before_a_results_folder_is_m
     assert not (tmp_path / "results").exists()
 
 
-def test_a_reproduce_where_every_run_failed_says_so_and_exits_non_zero(tmp_path, capsys):
-    # The texture is checked when the scene is built (an attack run may write it later), so every run fails.
-    (tmp_path / "fake.png").write_text("not a png")
+def test_a_reproduce_where_every_run_failed_says_so_and_exits_non_zero(tmp_path, capsys, monkeypatch):
+    import avsim.loop
+    from avsim.errors import RenderError
+
+    def no_scene(config):
+        raise RenderError("the GL went away")  # as a run that fails on the machine, after every input was checked
+
+    monkeypatch.setattr(avsim.loop, "build_scene", no_scene)  # the runs run in this process (--workers 1)
     experiment = tmp_path / "table3_stop_positions.toml"
-    experiment.write_text(TINY_TABLE3.replace('town = "town07",', f'town = "town07", sign = "{tmp_path / "fake.png"}",'))
+    experiment.write_text(TINY_TABLE3)
     code = cli.main(["reproduce", "--experiments", str(experiment), "--workers", "1", "--no-progress",
                      "--out", str(tmp_path / "results")])
     err = capsys.readouterr().err

@@ -97,6 +97,8 @@ def save_checkpoint(path: str | Path, model: nn.Module, optimizer: torch.optim.O
 def load_checkpoint(path: str | Path) -> dict[str, Any]:
     """The checkpoint dict, checked to be ours; raises WeightsError if missing or unreadable."""
     path = Path(path)
+    if path.is_dir():
+        raise WeightsError(f"detector weights {path} is a folder; name the weights file in it (e.g. {path / 'sign_detector.pt'})")
     if not path.is_file():
         raise WeightsError(f"detector weights {path} are missing; train them with {TRAIN_HINT} (see docs/perception.md)")
     try:

@@ -42,6 +42,8 @@ class OnnxRunner:
 
     def __init__(self, path: str | Path, class_names: tuple[str, ...], min_confidence: float, threads: int = 1) -> None:
         path = Path(path)
+        if path.is_dir():
+            raise OnnxModelError(f"ONNX model {path} is a folder; set perception.onnx_path to the .onnx file in it")
         if not path.is_file():
             raise OnnxModelError(f"ONNX model {path} does not exist; set perception.onnx_path to a .onnx file")
         try:

@@ -50,6 +50,12 @@ def test_missing_file(tmp_path):
     assert isinstance(info.value, AvsimError)
 
 
+def test_a_folder_is_named_as_one_not_as_missing(tmp_path):
+    with pytest.raises(WeightsError) as info:
+        load_weights(tmp_path)
+    _assert_one_line(info.value, "is a folder", "sign_detector.pt")
+
+
 @pytest.mark.parametrize("content", [os.urandom(2048), b"", b"hello\nworld\n"])
 def test_garbage_bytes(tmp_path, content):
     path = tmp_path / "w.pt"

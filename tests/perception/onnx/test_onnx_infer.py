@@ -58,6 +58,13 @@ def test_malformed_onnx_is_one_line_and_exit_2(tmp_path, capsys, content, comman
     assert not out.exists() and captured.out == ""
 
 
+def test_a_folder_for_the_model_is_named_as_one(tmp_path, capsys):
+    code = cli.main(["run", "--perception", "onnx", *_overrides(str(tmp_path)), "--json", str(tmp_path / "out.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and f"ONNX model {tmp_path} is a folder" in err, err
+    assert not (tmp_path / "out.json").exists()
+
+
 def test_a_class_list_that_does_not_fit_the_output_is_refused(exported, capsys):
     code = cli.main(["run", "--perception", "onnx", *_overrides(exported, "['stop_sign']")])
     lines = capsys.readouterr().err.splitlines()
