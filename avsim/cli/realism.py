@@ -11,6 +11,7 @@ import json
 import os
 from pathlib import Path
 
+from avsim.errors import OutputError
 from avsim.outputs import FOLDER, add_output_argument, temporary_path, write_text
 from avsim.realism.frame_set import BIN_WIDTH_M, DEFAULT_MAX_DIST_M, MAX_DIST_LIMIT_M
 from avsim.realism.settings import NETWORKS, SETTINGS
@@ -40,10 +41,13 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     towns = args.towns or TOWNS.names()
     for town in towns:
         TOWNS.get(town)  # every name checked before anything renders
+    out = Path(args.out)
+    if (out / "frames.jsonl").exists():  # a finished run's frames: another run into it would replace them
+        raise OutputError(f"--out {out} already holds a realism run (frames.jsonl); choose another --out, or remove "
+                          "that folder to run it again")
     plan = BenchmarkPlan(tuple(SETTINGS[name] for name in args.settings), tuple(towns), args.frames,
                          tuple(args.networks), args.threshold, args.seed, args.max_dist_m)
     rows = run_benchmark(plan, args.workers)
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "frames.jsonl", "".join(json.dumps(row) + "\n" for row in rows))
     text = report(rows, args.threshold, software_versions())

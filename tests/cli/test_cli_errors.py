@@ -67,6 +67,8 @@ CASES = {
     "snapshot --out under a file": Case(["snapshot", "--out", "{tmp}/afile/snap"], "is a file", files={"afile": "x"}),
     "snapshot --out ''": Case(["snapshot", "--out", ""], "prefix"),
     "sweep --out a file": Case(["sweep", str(SMOKE), "--out", "{tmp}/afile"], "not a folder", files={"afile": "x"}),
+    "realism --out holding a run": Case(["realism", "--towns", "town07", "--out", "{tmp}/r"], "already holds a realism run",
+                                        files={"r/frames.jsonl": "{}\n", "r/report.md": "# the first run"}),
     "sweep a folder": Case(["sweep", "{tmp}/sweeps", "--out", "{tmp}/out"], "sweeps is a folder; give the sweep file",
                            files={"sweeps/keep": ""}),
     "sweep --out in /proc": Case(["sweep", str(SMOKE), "--out", "/proc/sweep"], "cannot write in /proc"),
