@@ -76,6 +76,9 @@ def split_path(data_dir: str | Path, split: str) -> Path:
     path = data_dir / f"{split}.jsonl"
     if path.is_file():
         return path
+    if data_dir.is_file():
+        raise DatasetError(f"--data {data_dir} is a file; a detector dataset is a folder with train.jsonl and "
+                           "val.jsonl (`avsim detector make-data --out FOLDER` makes one): point --data at it")
     if not data_dir.is_dir():
         raise DatasetError(f"no detector dataset at {data_dir} (a fresh clone has none); make one with "
                            f"`avsim detector make-data --out {data_dir}` (about 4.5 min), or point --data at one")
