@@ -45,6 +45,7 @@ from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
 from avsim.experiments.spec import Experiment, check_networks, check_renderer, check_run_names, load_experiment, located
+from avsim.config_owners import dotted_keys
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE, SETTINGS
 
@@ -155,6 +156,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         out = Path(resume)
         existing = resumable_records(out)
         check_resumed_selection(out, experiments, yes=yes)
+        check_resumed_setting(out, experiments, existing, yes=yes)
     else:
         out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
         existing = []
@@ -186,6 +188,42 @@ def check_resumed_selection(folder: Path, experiments: list[Experiment], *, yes:
                           f"this command adds {' '.join(added)}; resume it with the selection that made it (the "
                           "command Ctrl-C printed, e.g. --experiments naming those files), or add --yes to run the "
                           "added files into it")
+
+
+# Every key a render setting sets (`avsim.realism.settings`): where a folder's runs and this command's differ in
+# one, the folder was made under another --setting.
+SETTING_KEYS = tuple(sorted({key for setting in SETTINGS.values() for key in dotted_keys(setting.config_overrides())}))
+
+
+def check_resumed_setting(folder: Path, experiments: list[Experiment], existing: list[dict], *, yes: bool) -> None:
+    """A one-line ConfigError when FOLDER's runs were drawn under another render setting than this command's,
+    unless `yes`.
+
+    Under another --setting every run's config differs, so a resume would run the whole selection again into the
+    folder. One finished run of a cell this command also runs is compared, key by key over SETTING_KEYS, with the
+    config this command gives the same run: a setting applies to every cell alike. `yes` lets it through, for a
+    file that was itself changed in one of those keys since (its changed cells then run again, as any change does).
+    """
+    if yes:
+        return
+    by_name = {(experiment.name, cell.name): (experiment, cell) for experiment in experiments for cell in experiment.cells}
+    for record in existing:
+        found = by_name.get((record.get("experiment"), record.get("cell")))
+        result = record.get("result") or {}
+        if found is None or record.get("status") != "ok" or "config" not in result:
+            continue
+        experiment, cell = found
+        asked = experiment.config_for(cell, record["seed"])
+        for key in SETTING_KEYS:
+            section, name = key.split(".")
+            there = result["config"].get(section, {}).get(name)
+            here = getattr(getattr(asked, section), name)
+            if there is not None and there != here:
+                raise ConfigError(f"--resume {folder}: its runs were drawn with {key} = {there!r} and this command's "
+                                  f"with {here!r}, so every run would run again into it; give the --setting that made "
+                                  f"the folder (its manifest.json's command names it), or add --yes if "
+                                  f"{experiment.path.name} itself changed that key since")
+        return
 
 
 def resumable_records(folder: Path) -> list[dict]:

@@ -9,7 +9,7 @@ from avsim import cli
 from avsim.errors import ConfigError
 from avsim.experiments.recordings import slug
 from avsim.experiments.reproduce import (EXPERIMENTS_DIR, MORE_EXPERIMENTS, STUDY_EXPERIMENTS, YOLO_EXPERIMENTS,
-                                          check_resumed_selection, load_study, reproduce)
+                                          check_resumed_selection, check_resumed_setting, load_study, reproduce)
 from avsim.experiments.results_file import encode, read_records
 
 # The study's Table III cell names, so the report sets them beside the study's figures.
@@ -179,6 +179,24 @@ def test_a_resume_of_the_same_files_or_fewer_needs_no_yes_and_more_files_need_it
         check_resumed_selection(_folder_of(tmp_path / "x", "a.toml"), both, yes=False)
     check_resumed_selection(_folder_of(tmp_path / "y", "a.toml"), both, yes=True)
     check_resumed_selection(_folder_of(tmp_path / "z"), both, yes=False)  # a folder from before its copies: unchecked
+
+
+def test_a_resume_under_another_render_setting_is_refused_before_any_run(results, tmp_path, capsys):
+    # The folder's runs were drawn under the default renders; --setting textured would run every one again into it.
+    stopped = tmp_path / "stopped"
+    shutil.copytree(results, stopped)
+    before = {p: p.read_bytes() for p in stopped.rglob("*") if p.is_file()}
+    table3, fig3 = results.parents[1] / "table3_stop_positions.toml", results.parents[1] / "fig3_detection.toml"
+    code = cli.main(["reproduce", "--experiments", str(table3), str(fig3), "--setting", "textured", "--workers", "1",
+                     "--no-progress", "--resume", str(stopped)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "its runs were drawn with scenario.materials = 'flat' and this command's with 'textured'" in err
+    assert {p: p.read_bytes() for p in stopped.rglob("*") if p.is_file()} == before
+    # The setting that made it passes, and so does --yes (a file that changed the key itself).
+    existing = read_records(stopped / "runs.jsonl")
+    check_resumed_setting(stopped, load_study([table3, fig3]), existing, yes=False)
+    check_resumed_setting(stopped, load_study([table3, fig3], setting="textured"), existing, yes=True)
 
 
 def test_quick_keeps_one_seed_per_cell(tmp_path):
