@@ -93,7 +93,8 @@ def add_commands(sub) -> None:
     add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true",
-                     help="run more than 10,000 runs, or add experiment files to a --resume folder (each refused without it)")
+                     help="run more than 10,000 runs, add experiment files to a --resume folder, or resume one under "
+                          "another --setting (each refused without it)")
     add_recording_modes(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
