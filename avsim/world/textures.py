@@ -239,7 +239,7 @@ SIGN_TEXTURE_MAKERS: dict[str, Callable[..., np.ndarray]] = {
 CLEAN_TEXTURE_FILES: dict[str, str] = {
     "stop_sign": "stop_sign.png", "yield": "yield.png", "speed_limit": "speed_limit.png"}
 
-_PNG_HINT = "give a PNG image (RGB or RGBA, 8-bit)"
+_PNG_HINT = "give a PNG image (colour or grey, with or without alpha, 8 or 16 bits a sample)"
 
 
 def load_texture_png(path: str | os.PathLike, expected_aspect: float | None = None) -> np.ndarray:
