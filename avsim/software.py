@@ -5,7 +5,7 @@ given, so that its hash, and a resumed batch, do not depend on the CPU; what "au
 property of the machine, the same for every network, and is recorded here beside the library versions.
 So is the GL that drew the frames (`gl`): a frame is a function of the state on one GL, and another GL or
 another Mesa may draw some of its pixels differently. And so is the vector instruction set torch's CPU kernels use
-here (`cpu_capability`, e.g. AVX2 or AVX512): fp32 convolutions sum in another order on another one, so a score
+here (`cpu_capability`, e.g. AVX2 or AVX512): fp32 convolutions may sum in another order on another one, so a score
 may differ in its last bits.
 """
 
