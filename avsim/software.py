@@ -63,6 +63,9 @@ def versions_sentence(versions: dict[str, str], cluster_nodes: list[dict[str, st
     here = ", ".join(f"{key} {value}" for key, value in versions.items())
     if cluster_nodes is None:
         return f"Versions: {here}."
+    if not cluster_nodes:  # an autoscaling cluster with no CPU node yet when it was asked
+        return (f"Versions of this machine, which sent the runs out: {here}. They ran on a Ray cluster that had no "
+                "node with CPUs when asked, so what they ran on is not recorded.")
     phrases = differences(versions, cluster_nodes)
     nodes = f"{len(cluster_nodes)} Ray node{'s' if len(cluster_nodes) != 1 else ''}"
     alike = "each with these versions" if not phrases else "; ".join(phrases)

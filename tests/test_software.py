@@ -57,6 +57,8 @@ def test_a_reports_versions_sentence_names_the_cluster_where_the_runs_ran_on_one
     alike = versions_sentence(HERE, [{"node": "10.0.0.2", **HERE}, {"node": "10.0.0.3", **HERE}])
     assert alike.startswith("Versions of this machine, which sent the runs out: python 3.11.2, ")
     assert alike.endswith("They ran on 2 Ray nodes (manifest.json's cluster_nodes): each with these versions.")
+    assert versions_sentence(HERE, []).endswith("They ran on a Ray cluster that had no node with CPUs when asked, so "
+                                                 "what they ran on is not recorded.")
     unlike = versions_sentence(HERE, [{"node": "10.0.0.3", **HERE, "gl": "NVIDIA"}])
     assert unlike.endswith("They ran on 1 Ray node (manifest.json's cluster_nodes): 10.0.0.3 runs gl 'NVIDIA' "
                            "(here 'llvmpipe, OpenGL 4.5 Mesa 22.3.6').")

@@ -218,6 +218,10 @@ def cluster_nodes(backend: str, address: str | None) -> list[dict[str, str]] | N
     if backend != "ray" or address is None:
         return None
     nodes = node_versions(address)
+    if not nodes:
+        warnings.warn(f"the Ray cluster at {address} had no node with CPUs when asked what its nodes run (one may "
+                      "join later, as an autoscaler adds it), so the manifest cannot say what the runs ran on",
+                      stacklevel=2)
     phrases = differences(software_versions(), nodes)
     if phrases:
         warnings.warn(f"the Ray cluster at {address} is not this machine's twin: {'; '.join(phrases)}; a run's numbers "

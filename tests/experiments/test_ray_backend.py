@@ -37,6 +37,12 @@ def test_a_node_unlike_this_machine_is_a_warning_and_every_node_is_kept(monkeypa
         assert ray_backend.cluster_nodes("ray", "10.0.0.1:6379") == nodes[:1]
 
 
+def test_a_cluster_with_no_node_to_ask_is_a_warning(monkeypatch):
+    monkeypatch.setattr(ray_backend, "node_versions", lambda address: [])
+    with pytest.warns(UserWarning, match="had no node with CPUs when asked"):
+        assert ray_backend.cluster_nodes("ray", "10.0.0.1:6379") == []
+
+
 @pytest.mark.slow  # 20 s: starts a local Ray cluster
 @pytest.mark.usefixtures("one_local_ray_cluster_at_a_time")
 def test_a_sweep_at_an_address_records_what_each_node_runs(tmp_path):
