@@ -278,9 +278,16 @@ def _condition(raw: Any, where: str) -> Condition:
     note = overrides.pop("note", "")
     if not isinstance(note, str):
         raise ConfigError(f"'{where}.note' must be a string, got {note!r}")
-    reject_seed(overrides)
-    with_overrides(SimConfig(), overrides)  # an unknown key or a bad value, named with its place in the file
+    _check_layer(overrides)
     return Condition(overrides, note)
+
+
+def _check_layer(overrides: Mapping[str, Any]) -> None:
+    """A defence's, condition's or availability scenario's config keys, checked where they are parsed so that an
+    unknown key or a bad value is named with its place in the file (the runs compose the layers later); the
+    seed is set per run."""
+    reject_seed(overrides)
+    with_overrides(SimConfig(), overrides)
 
 
 def _parse_defence(path: Path, index: int, raw: Any) -> Defence:
@@ -296,8 +303,7 @@ def _parse_defence(path: Path, index: int, raw: Any) -> Defence:
             raise ConfigError("no 'adaptive' table: give the defence's own adaptive attack as config keys, e.g. "
                               "adaptive = { scenario = { sign = \"adaptive\" } }")
         adaptive = _condition(overrides.pop("adaptive"), "adaptive")
-        reject_seed(overrides)
-        with_overrides(SimConfig(), overrides)  # an unknown key or a bad value, named with its defence
+        _check_layer(overrides)
         return Defence(name, about, overrides, Condition(adaptive.overrides, adaptive_note))
 
 
@@ -328,7 +334,7 @@ def _parse_availability(path: Path, index: int, raw: Any, defence_names: set[str
             unknown = sorted(set(only) - defence_names)
             if unknown:
                 raise ConfigError(f"'defences' names '{unknown[0]}', which is no defence of this file")
-        reject_seed(overrides)
+        _check_layer(overrides)
         return Availability(name, overrides, *seeds, tuple(only) if only is not None else None)
 
 

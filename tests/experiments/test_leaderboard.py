@@ -124,6 +124,8 @@ def test_every_shipped_defence_faces_an_adaptive_attack_of_its_own():
     (("[conditions.strongest]\nnote = \"stand-in\"\nscenario = { sign = \"yang\" }",
       "[conditions.strongest]\nnote = \"stand-in\"\nscenario = { sign = \"yang\", bogus = 1 }"),
      r"\[conditions\]: unknown config key 'scenario.bogus'"),
+    (("name = \"no stop sign\"\nscenario = { sign = \"none\" }", "name = \"no stop sign\"\nscenario = { sign = \"none\", bogus = 1 }"),
+     r"availability\[0\] \"no stop sign\": unknown config key 'scenario.bogus'"),
 ])
 def test_every_run_is_checked_when_the_file_loads(tmp_path, change, message):
     old, new = change
