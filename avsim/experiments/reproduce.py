@@ -94,12 +94,17 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
         experiments = [dataclasses.replace(e, seeds=1 if quick else seeds) for e in experiments]
     runs = sum(e.size for e in experiments)
     check_plan_size(runs, f"the {len(experiments)} experiment file(s)", yes=yes)
+    checked_signs: set[str] = set()
     for experiment in experiments:
         for cell in experiment.cells:
             # The sign texture too: a file may name one that is written after it (an attack's), but by now
             # every run needs it, and a missing or broken one would fail each run after the folder is made.
-            with located(experiment.path, f'cell "{cell.name}"'):
-                check_run_names(cell.config)
+            # Each texture is decoded once (`--all` has 449 cells and a few textures); the other names were
+            # checked per cell when the file loaded.
+            if cell.config.scenario.sign not in checked_signs:
+                with located(experiment.path, f'cell "{cell.name}"'):
+                    check_run_names(cell.config)
+                checked_signs.add(cell.config.scenario.sign)
             check_networks(cell.config)
             check_renderer(cell.config)
     return experiments
