@@ -127,26 +127,26 @@ class ScenarioConfig:
     # junction where no stop is required); "none", the map matches the world.
     map_error: str = "none"
     # Surfaces: "flat", one colour each (the default renders); "textured", procedural texture at
-    # the scale a camera resolves (world/surface_textures.py, docs/realism.md).
+    # the scale a camera resolves (world/surface_textures.py, docs/realism_scene.md).
     materials: str = "flat"
     # Signs: "flat", the faces' design colours on a plain grey plate and post (the default renders);
     # "sheeting", the faces in the standard's sheeting colours on an aluminium blank and a galvanised post
-    # (world/sign_materials.py, docs/realism.md).
+    # (world/sign_materials.py, docs/realism_scene.md).
     sign_materials: str = "flat"
     # The sun's shadows: 0, none (the default renders); else the side of the shadow map [texels].
     sun_shadow_map_px: int = 0
     # Tree crowns: "solid", one opaque ellipsoid each (the default renders); "clusters", leaf clusters
     # filling the same envelope with gaps, at a broadleaf crown's optical porosity (world/foliage.py,
-    # docs/realism.md).
+    # docs/realism_foliage.md).
     foliage: str = "solid"
     # The sky: "gradient", MuJoCo's built-in light-blue gradient (the default renders); "daylight", a clear
-    # sky that follows the sun, from Preetham et al.'s model at sky_turbidity (world/sky.py, docs/realism.md).
+    # sky that follows the sun, from Preetham et al.'s model at sky_turbidity (world/sky.py, docs/realism_sky.md).
     sky: str = "gradient"
     # The atmosphere's turbidity for sky = "daylight": 2 very clear, 3 clear, 6 hazy (Preetham et al. 1999).
     sky_turbidity: float = ranged(3.0, 2, 10)
     # The sky's brightness against the scene, in stops: 0 is the gradient's colours, and the daylight sky at the
     # gradient's mean luminance; +1 doubles the sky's light (more of it clips to white), -1 halves it. The
-    # classic renderer has no exposure, so this level is a choice (docs/realism.md measures what it decides).
+    # classic renderer has no exposure, so this level is a choice (docs/realism_sky.md measures what it decides).
     sky_exposure_ev: float = ranged(0.0, -3, 3, unit="EV")
     # Fair-weather cumulus over the daylight sky, in oktas (eighths of the sky covered, as weather observers
     # report cover): 0 a clear sky (the default), 3-4 scattered, 5-6 broken. Not 7-8: the scene's sun always
@@ -273,7 +273,7 @@ class CameraConfig:
     # The sensor and lens (CAMERA_PRESETS): "study" is the study's 640x480 at fovy 30 deg (39.3 deg
     # horizontal, f = 896 px), every existing result's camera; "automotive_1080p" a modern automotive
     # front camera, 1920x1080 at 55 deg horizontal (fovy 32.6 deg, f = 1844 px). The intrinsics, the
-    # pinhole range estimate, the regions of interest and the recorders follow it (docs/realism.md).
+    # pinhole range estimate, the regions of interest and the recorders follow it (docs/realism_camera.md).
     preset: str = "study"
     # width_px, height_px, fovy_deg, side_fovy_deg: 0 takes the preset's value (resolved on construction,
     # so a saved config holds the numbers); another value overrides the preset's.
@@ -287,7 +287,7 @@ class CameraConfig:
     # Segmentation is rendered at this multiple of the resolution so that
     # ground-truth boxes have sub-pixel edges (a 60 m sign is only 11 px tall).
     seg_supersample: int = 2
-    # The photographic model (sensors/photo.py, docs/realism.md), all off by default:
+    # The photographic model (sensors/photo.py, docs/realism_camera.md), all off by default:
     # RGB rendered at this multiple of the resolution and area-averaged down, as a photosite
     # integrates the light over its area (anti-aliasing at the sensor).
     supersample: int = 1

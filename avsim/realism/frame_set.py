@@ -37,7 +37,7 @@ EXPERIMENT_LIGHTING = {"sun_elevation_deg": (30.0, 70.0), "sun_azimuth_deg": (-1
 SENSOR_NOISE_STD_LEVELS = 2.0
 # 5-m distance bins from the camera to the sign face along the road [m]: 10-15, ..., 55-60 by default.
 # `--max-dist-m` runs them out to 150 m, where the closed-loop files start the car: false stop signs that
-# open a braking gate 60-100 m out (docs/realism.md) are outside the default set.
+# open a braking gate 60-100 m out (docs/realism_foliage.md) are outside the default set.
 NEAREST_DIST_M = 10
 BIN_WIDTH_M = 5
 DEFAULT_MAX_DIST_M = 60

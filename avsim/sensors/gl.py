@@ -107,7 +107,7 @@ def gl_description() -> str | None:
     """"llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 (Compatibility Profile) Mesa 22.3.6": the GL that draws
     this process's frames, for a batch's manifest and a report (None where no context starts here). Frames
     are a function of the state on one GL; another GL, or another Mesa, may draw some pixels differently, and
-    under `camera.texture_anisotropy` filters textures in its own way (docs/realism.md)."""
+    under `camera.texture_anisotropy` filters textures in its own way (docs/realism_filtering.md)."""
     info = _gl_info()
     return None if info is None else f"{info.renderer}, OpenGL {info.version}"
 

@@ -37,7 +37,7 @@ exp(-3.912 r / V) over the slant range r (Koschmieder's law, V the meteorologica
 `scenario.cloud_visibility_km`, 30 km by default for clear air). The same air would also raise the
 sky's turbidity; the two are set independently here, and V fades only the clouds.
 
-What is not modelled, each stated in docs/realism.md: the sunlit sides of towering clouds (a flat
+What is not modelled, each stated in docs/realism_sky.md: the sunlit sides of towering clouds (a flat
 layer is seen from below only), the shadows clouds cast (the scene's sun is never behind a cloud,
 even where the sky shows one across it), cloud colour at sunset, and the sun's disc (around the sun
 the daylight sky already clips to white at this exposure).

@@ -11,7 +11,7 @@ Physical figures:
 - CROWN_POROSITY = 0.19: the median of the summer sky fractions seen through mature broadleaf crowns
   measured by Wilkinson (1992; oak 0.17, sycamore 0.18, birch 0.24, Lombardy poplar 0.13, lime 0.11,
   beech 0.19, hawthorn 0.22, alder 0.24, ash 0.22, horse chestnut 0.19), as tabulated in Tregenza and
-  Sharples' daylight algorithms (1.44c). docs/realism.md.
+  Sharples' daylight algorithms (1.44c). docs/realism_foliage.md.
 - CLUSTER_RADIUS_M = 0.3-0.7 m: the foliage of one branch's leafy spray, 0.6-1.4 m across. This is an
   assumed scale, not a measured one.
 - Leaves grow into light, so a crown's foliage spreads over its gaps rather than piling up behind

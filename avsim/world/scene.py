@@ -47,7 +47,7 @@ SUN_SHADOW_DISTANCE_M = 300.0
 # Tessellation of MuJoCo's curved geoms (tree crowns and trunks, posts, wheels): slices around, stacks
 # from pole to pole, against MuJoCo's default 28 and 16. Software rasterisers are vertex-bound on our
 # scenes, and these coarser ones save about a third of a frame. A crown is then a 12-sided outline;
-# drawing it smooth did not change the COCO networks' false stop signs on it (docs/realism.md,
+# drawing it smooth did not change the COCO networks' false stop signs on it (docs/realism_foliage.md,
 # "Not the crowns' facets").
 CURVE_SLICES, CURVE_STACKS = 12, 6
 

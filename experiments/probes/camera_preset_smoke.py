@@ -4,7 +4,7 @@ control step (`time.process_time`: rendering both cameras, Mesa's GL threads and
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/camera_preset_smoke.py detector,coco study,automotive_1080p
 
-Measured here (2 cores shared with other jobs; docs/realism.md, "Camera presets"):
+Measured here (2 cores shared with other jobs; docs/realism_camera.md, "Camera presets"):
 detector study 22.0 ms/step, automotive_1080p 56.6 ms; coco study 65.4 ms, automotive_1080p 568.4 ms.
 With the own detector's native pass (perception.detector_native_pixels, the default since): detector
 study 19.9 ms, automotive_1080p 99.0 ms (`camera_preset_smoke.py detector study,automotive_1080p`).

@@ -19,7 +19,7 @@ deployed, and the other way.
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/crown_tessellation.py 18 results/crown_tessellation
 
-Measured here: docs/realism.md, "Not the crowns' facets".
+Measured here: docs/realism_foliage.md, "Not the crowns' facets".
 """
 
 import json

@@ -26,7 +26,7 @@ town runs in a child process. About 8 minutes on this 2-core machine.
     MUJOCO_GL=egl LP_NUM_THREADS=1 nice -n 5 python experiments/probes/filament_recall.py results/filament_recall
 
 Writes rows.jsonl (the benchmark's row per frame, network and renderer, plus `renderer` and `render_ms`) in
-the folder and prints the tables. Measured here: docs/realism.md, "The Filament renderer, measured".
+the folder and prints the tables. Measured here: docs/realism_scene.md, "The Filament renderer, measured".
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ of that camera at the same state (named without copy numbers, as `avsim realism`
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/foliage_phantom_brake.py 0,1,2 solid,clusters
 
-Measured here: docs/realism.md, "See-through tree crowns".
+Measured here: docs/realism_foliage.md, "See-through tree crowns".
 """
 
 import sys

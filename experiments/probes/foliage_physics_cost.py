@@ -6,7 +6,7 @@ the scene and of one `mj_step` (the car placed 200 m before the line at 10 m/s, 
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/foliage_physics_cost.py
 
-Measured here: docs/realism.md, "See-through tree crowns".
+Measured here: docs/realism_foliage.md, "See-through tree crowns".
 """
 
 import time

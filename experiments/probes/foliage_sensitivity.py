@@ -10,7 +10,7 @@ bf16, baseline policy, seed 0). It writes OUT/report.md, OUT/recall.png and OUT/
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/foliage_sensitivity.py 12 results/foliage_sensitivity
 
-Measured here: docs/realism.md, "See-through tree crowns".
+Measured here: docs/realism_foliage.md, "See-through tree crowns".
 """
 
 import json

@@ -12,7 +12,7 @@ step before it that had a confident stop-sign box anywhere but on the stop sign:
 
     MUJOCO_GL=egl nice -n 5 python experiments/probes/phantom_brake.py RESULTS.jsonl "CELL" 1,2,3
 
-Measured here: docs/realism.md, "The COCO CenterNet's phantom with see-through crowns".
+Measured here: docs/realism_foliage.md, "The COCO CenterNet's phantom with see-through crowns".
 """
 
 import json

@@ -7,7 +7,7 @@ confident box far out does not brake the car.
 
     MUJOCO_GL=egl python experiments/probes/run_trace.py table2_attacked_defended "Town10 far" 3 textured_sheeting_clusters_shadows
 
-Measured here: docs/realism.md, "Table III under the scene settings" (Table II's run that never braked).
+Measured here: docs/realism_closed_loop.md, "Table III under the scene settings" (Table II's run that never braked).
 It is not part of avsim; it writes nothing.
 """
 

@@ -17,7 +17,7 @@ settings: the towns keep their buildings.
 For each seed and backdrop: where the first confident stop-sign detection came (bumper to sign), where
 braking began, and whether the car stopped before the sign.
 
-Measured here: docs/realism.md, "The COCO closed loop in Town10 under the realism settings".
+Measured here: docs/realism_closed_loop.md, "The COCO closed loop in Town10 under the realism settings".
 """
 
 import sys

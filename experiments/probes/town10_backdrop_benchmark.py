@@ -20,7 +20,7 @@ with each backdrop in the place of a render setting (`backdrop_brick`, ...), pai
 Each call renders its backdrops in one process and writes `rows_BACKDROP.jsonl`; the report (`report.md`)
 is written afresh over every backdrop's rows in the folder, so two calls can share the machine's two cores.
 
-Measured here: docs/realism.md, "Measured: Town10's facades in the benchmark".
+Measured here: docs/realism_closed_loop.md, "Measured: Town10's facades in the benchmark".
 """
 
 import json

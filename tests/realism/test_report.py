@@ -103,7 +103,7 @@ def test_the_report_covers_every_setting_and_network():
 
 def test_the_report_names_the_gl_that_drew_its_frames():
     # A frame's pixels are those of the GL that drew it: llvmpipe filters textures under
-    # camera.texture_anisotropy in its own way (docs/realism.md), so a report says which GL it was.
+    # camera.texture_anisotropy in its own way (docs/realism_filtering.md), so a report says which GL it was.
     versions = {"mujoco": "4.0.0", "gl": "llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 Mesa 22.3.6"}
     text = report(_grid_rows(), 0.5, versions)
     assert "\nDrawn by llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 Mesa 22.3.6; mujoco 4.0.0.\n" in text

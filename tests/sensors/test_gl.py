@@ -180,9 +180,9 @@ def _llvmpipe_of_mesa_22_3() -> bool:
     return info is not None and info.renderer.startswith("llvmpipe") and "Mesa 22.3" in info.version
 
 
-@pytest.mark.skipif(not _llvmpipe_of_mesa_22_3(), reason="what docs/realism.md measured on llvmpipe of Mesa 22.3")
+@pytest.mark.skipif(not _llvmpipe_of_mesa_22_3(), reason="what docs/realism_filtering.md measured on llvmpipe of Mesa 22.3")
 def test_llvmpipe_of_mesa_22_3_filters_the_whole_footprint_whatever_ratio_is_asked():
-    # docs/realism.md and camera.texture_anisotropy's docs rest on this: Mesa 22.3's llvmpipe takes any
+    # docs/realism_filtering.md and camera.texture_anisotropy's docs rest on this: Mesa 22.3's llvmpipe takes any
     # ratio above 1 as one filter (every texel of the footprint's ellipse, Gaussian-weighted), so 2 and 16
     # draw the same pixels, even where a footprint is 10-70 times longer than wide. A GL that honours the
     # ratio fails here, and those docs then need measuring again on it.

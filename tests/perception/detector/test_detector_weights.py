@@ -107,7 +107,7 @@ def test_export_keeps_the_weights_and_drops_the_training_state(tmp_path):
 
 def test_the_scene_trained_weights_load_beside_the_shipped_ones_and_differ():
     """models/sign_detector_scenes.pt: the same network retrained on renders under every scene setting
-    (docs/realism.md, "The own detector retrained on the full scene")."""
+    (docs/realism_networks.md, "The own detector retrained on the full scene")."""
     from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 
     shipped, shipped_meta = load_weights(SHIPPED_WEIGHTS)
