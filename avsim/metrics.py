@@ -115,6 +115,19 @@ def is_phantom_brake(stop_required: bool, max_brake: float) -> bool:
     return not stop_required and max_brake > PHANTOM_BRAKE_LEVEL
 
 
+def rested_beyond_gate(stop_required: bool, outcome: str, margin_m: float | None, trigger_dist_m: float | None) -> bool:
+    """A required stop that ended farther before the stop line (`margin_m`, bumper to line [m]) than the
+    braking gate reaches (`policy.trigger_dist_m` [m]; None: no gate, never).
+
+    Every perceiving policy brakes for a stop sign only once its range estimate to the line is inside the
+    gate, and the car travels on while it stops, so coming to rest beyond the gate means braking began
+    outside it: the range read nearer than the line by more than the car's stopping distance (a false stop
+    sign, or the sign's box stretched over what stands behind it). Such a run counts as a stop
+    (STOPPED_BEFORE_SIGN), as in the study; reports name it beside the stop rates."""
+    return (stop_required and outcome in STOPPED_BEFORE_SIGN and trigger_dist_m is not None
+            and margin_m is not None and margin_m > trigger_dist_m)
+
+
 def comfort_peaks(records: list[StepRecord], last: StepRecord) -> tuple[float | None, float | None]:
     """(peak deceleration [m/s^2], peak jerk [m/s^3]) from the first brake command to the end;
     (None, None) if the car never braked.

@@ -5,7 +5,8 @@ import math
 
 import pytest
 
-from avsim.metrics import OUTCOMES, STOPPED_BEFORE_SIGN, StepRecord, classify_outcome, summarise, write_json_atomic
+from avsim.metrics import (OUTCOMES, STOPPED_BEFORE_SIGN, StepRecord, classify_outcome, rested_beyond_gate, summarise,
+                           write_json_atomic)
 
 SIGN_XY = (1.0, -4.0)
 
@@ -158,3 +159,17 @@ def test_write_json_atomic_failure_keeps_previous_file(tmp_path):
         write_json_atomic(path, {"v": math.nan})
     assert json.loads(path.read_text()) == {"v": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["result.json"]
+
+
+@pytest.mark.parametrize(("stop_required", "outcome", "margin_m", "trigger_dist_m", "beyond"), [
+    (True, "stopped_before_line", 98.2, 40.0, True),    # braked 133 m out on a false stop sign
+    (True, "stopped_before_line", 7.3, 40.0, False),    # braked inside the gate for the sign
+    (True, "stopped_before_line", 40.0, 40.0, False),   # at the gate's edge: not beyond it
+    (True, "stopped_before_line", 98.2, None, False),   # no gate: nothing to be beyond
+    (True, "ran_past_sign", -1.7, 40.0, False),
+    (False, "phantom_stop", 98.2, 40.0, False),         # no stop required: a phantom stop, counted as such
+    (True, "stopped_before_line", None, 40.0, False),
+])
+def test_a_stop_beyond_the_braking_gate_is_one_that_ended_farther_before_the_line_than_the_gate(
+        stop_required, outcome, margin_m, trigger_dist_m, beyond):
+    assert rested_beyond_gate(stop_required, outcome, margin_m, trigger_dist_m) is beyond

@@ -11,7 +11,7 @@ from typing import Any
 
 from avsim.experiments.attacks import success as attack_success
 from avsim.config import SimConfig
-from avsim.experiments.report_cells import Cells, fmt, markdown_table, run_full_brake_decel_mps2
+from avsim.experiments.report_cells import Cells, beyond_gate, fmt, markdown_table, run_full_brake_decel_mps2
 from avsim.experiments.spec import Experiment
 from avsim.metrics import STOPPED_BEFORE_SIGN
 from avsim.stats import rate_with_interval
@@ -94,8 +94,9 @@ def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
     stem = experiment.name
     places = list(dict.fromkeys((c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells))
     policies = list(dict.fromkeys(c.config.policy.name for c in experiment.cells))
-    by_place = {(c.config.scenario.town, c.config.scenario.placement, c.config.policy.name): c.name for c in experiment.cells}
+    by_place = {(c.config.scenario.town, c.config.scenario.placement, c.config.policy.name): c for c in experiment.cells}
     pooled: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    pooled_beyond: dict[str, int] = defaultdict(int)
 
     def rate(results: list[dict[str, Any]]) -> str:
         return rate_with_interval(sum(r["outcome"] in STOPPED_BEFORE_SIGN for r in results), len(results))
@@ -104,20 +105,29 @@ def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
     for town, placement in places:
         row = [f"{town} {placement}"]
         for policy in policies:
-            name = by_place.get((town, placement, policy))
-            if name is None:  # no such cell
+            cell = by_place.get((town, placement, policy))
+            if cell is None:  # no such cell
                 row.append("–")
                 continue
-            results = cells.of(stem, name)
+            results = cells.of(stem, cell.name)
             pooled[policy] += results
-            failed = cells.failed.get((stem, name), 0)
+            failed = cells.failed.get((stem, cell.name), 0)
+            beyond = len(beyond_gate(results, cell.config.policy.trigger_dist_m))
+            pooled_beyond[policy] += beyond
             row.append(f"{rate(results)}; {fmt([r['sign_margin_m'] for r in results])} m"
-                       + (f"; {failed} failed" if failed else ""))
+                       + _beyond_gate_note(beyond) + (f"; {failed} failed" if failed else ""))
         rows.append(row)
-    rows.append(["all cells"] + [f"{rate(pooled[p])}; {fmt([r['sign_margin_m'] for r in pooled[p]])} m" for p in policies])
+    rows.append(["all cells"] + [f"{rate(pooled[p])}; {fmt([r['sign_margin_m'] for r in pooled[p]])} m"
+                                 + _beyond_gate_note(pooled_beyond[p]) for p in policies])
     return ["Runs stopped before the sign (95% Wilson interval of the rate); the front bumper's distance before the "
-            "sign at rest, mean ± std over the runs [m] (negative: past it).", "",
+            "sign at rest, mean ± std over the runs [m] (negative: past it); how many of those stops came to rest "
+            "farther before the stop line than the braking gate reaches, where there were any (braking began outside "
+            "the gate: see Findings).", "",
             *markdown_table(["town, placement", *policies], rows)]
+
+
+def _beyond_gate_note(count: int) -> str:
+    return f"; {count} at rest beyond the gate" if count else ""
 
 
 def attack_success_section(cells: Cells, experiment: Experiment) -> list[str]:

@@ -70,6 +70,10 @@ YOLO_EXPERIMENTS = ("yolo_detector", "table3_yolo", "table3_yolo_clusters", "att
                     "attacks/success_yolo_towns", "attacks/sensitivity_yolo_town03", "attacks/success_yolo_textures",
                     "attacks/success_yolo_textures_town07", "attacks/success_yolo_textures_towns",
                     "attacks/driveby_yolo")
+# Files of cells to run under a costly render setting (`--setting`), run by name: under the default renders each
+# repeats another file's runs, config for config, and under `textured_aniso16` a run costs about 2 CPU-seconds a
+# control step on llvmpipe (docs/realism_filtering.md).
+SETTING_EXPERIMENTS = ("coco_detector_town10",)
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,

@@ -19,7 +19,7 @@ from typing import Any
 
 from avsim.experiments import study_figures
 from avsim.experiments.figures import make_figures
-from avsim.experiments.report_cells import (Cells, Record, fmt, markdown_table, origin_before_sign_m,
+from avsim.experiments.report_cells import (Cells, Record, beyond_gate, fmt, markdown_table, origin_before_sign_m,
                                             run_full_brake_decel_mps2)
 from avsim.experiments.report_sections import (adaptive_answer, attack_success_section, compare_section,
                                                sensitivity_section, stop_rates)
@@ -120,7 +120,7 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
     """Where a defended run (or an undefended one at the clean sign) ran past the sign, with the
     deceleration stopping before the sign needed when braking began; then what each attacked sign
     did to the undefended `baseline` rule, beside the study's."""
-    failures, attacks, unknown = [], [], []
+    failures, attacks, unknown, short = [], [], [], []
     for experiment in experiments:
         stem = experiment.path.stem
         for cell in experiment.cells:
@@ -140,6 +140,11 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
             elif past:
                 kind = "defence" if config.policy.name in DEFENCES else "undefended run at the clean sign"
                 failures.append(f"- {where} ({kind}): {_did_not_stop(past)} in {len(past)} of {len(results)} finished runs{_needed(past)}.")
+            if beyond := beyond_gate(results, config.policy.trigger_dist_m):
+                short.append(f"- {where}: {len(beyond)} of {len(results)} finished runs came to rest "
+                             f"{_span([r['margin_m'] for r in beyond])} m before the stop line, beyond the "
+                             f"{config.policy.trigger_dist_m:g} m gate; braking began "
+                             f"{_span([r['dist_at_brake_m'] for r in beyond])} m before the sign.")
     finished = sum(len(results) for results in cells.results.values())
     lines = ["Defended runs (and clean-sign runs) that did not stop before the sign:", ""]
     if not finished:
@@ -147,11 +152,22 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
     else:
         lines += failures or [f"- none: every finished defended run stopped before the sign"
                               f"{' (the failed runs below have no outcome)' if unknown else ''}."]
+    if short:
+        lines += ["", "Runs counted as stopped that came to rest farther before the stop line than the braking gate "
+                  "reaches: braking began outside the gate, on a range that read nearer than the line by more than the "
+                  "car's stopping distance (a false stop sign, or the sign's box stretched over what stands behind it):",
+                  "", *short]
     if unknown:
         lines += ["", f"Runs that failed, and have no outcome: {'; '.join(unknown)}."]
     if attacks:
         lines += ["", "What each attacked sign did to the undefended `baseline` rule:", "", *attacks]
     return lines
+
+
+def _span(values: Sequence[float]) -> str:
+    """"12.3" for one value or equal ones, else "12.3–45.6" (lowest to highest, one decimal)."""
+    low, high = f"{min(values):.1f}", f"{max(values):.1f}"
+    return low if low == high else f"{low}–{high}"
 
 
 def _did_not_stop(results: Sequence[dict[str, Any]]) -> str:

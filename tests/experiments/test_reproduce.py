@@ -8,8 +8,9 @@ import pytest
 from avsim import cli
 from avsim.errors import ConfigError
 from avsim.experiments.recordings import slug
-from avsim.experiments.reproduce import (EXPERIMENTS_DIR, MORE_EXPERIMENTS, STUDY_EXPERIMENTS, YOLO_EXPERIMENTS,
-                                          check_resumed_selection, check_resumed_setting, load_study, reproduce)
+from avsim.experiments.reproduce import (EXPERIMENTS_DIR, MORE_EXPERIMENTS, SETTING_EXPERIMENTS, STUDY_EXPERIMENTS,
+                                         YOLO_EXPERIMENTS, check_resumed_selection, check_resumed_setting, load_study,
+                                         reproduce)
 from avsim.experiments.results_file import encode, read_records
 
 # The study's Table III cell names, so the report sets them beside the study's figures.
@@ -81,10 +82,10 @@ def test_report_sets_the_study_beside_ours_and_links_the_figures(results):
         assert f"]({figure})" in report
 
 
-def test_every_experiment_file_is_in_the_study_in_all_or_among_the_yolo_files_run_by_name():
-    """No file is left out of `avsim reproduce --all` without a name saying why."""
+def test_every_experiment_file_is_in_the_study_in_all_or_among_the_files_run_by_name():
+    """No file is left out of `avsim reproduce --all` without a name saying why (the YOLO files, the costly settings')."""
     shipped = {p.relative_to(EXPERIMENTS_DIR).with_suffix("").as_posix() for p in EXPERIMENTS_DIR.rglob("*.toml")}
-    groups = (STUDY_EXPERIMENTS, MORE_EXPERIMENTS, YOLO_EXPERIMENTS)
+    groups = (STUDY_EXPERIMENTS, MORE_EXPERIMENTS, YOLO_EXPERIMENTS, SETTING_EXPERIMENTS)
     listed = [name for group in groups for name in group]
     assert len(listed) == len(set(listed))
     assert set(listed) == shipped - {p for p in shipped if p.startswith(("sweeps/", "leaderboards/"))}
@@ -435,3 +436,45 @@ scenario = { town = "town10", placement = "far" }
     assert rows["town07 near"] == ["1/2 (0.09–0.91); 1.0 ± 2.8 m", "1/1 (0.21–1.00); 0.5 m"]
     assert rows["town10 far"] == ["0/1 (0.00–0.79); -40.0 m; 1 failed", "–"]
     assert rows["all cells"] == ["1/3 (0.06–0.79); -12.7 ± 23.8 m", "1/1 (0.21–1.00); 0.5 m"]
+
+
+def test_stops_that_ended_beyond_the_braking_gate_are_counted_beside_the_stop_rate_and_named_in_the_findings(tmp_path):
+    from avsim.experiments.report_cells import Cells
+    from avsim.experiments.report_sections import stop_rates
+    from avsim.experiments.reproduce_report import findings
+    from avsim.experiments.spec import load_experiment
+
+    path = tmp_path / "rates.toml"
+    path.write_text("""
+report = "stop_rates"
+[defaults]
+perception = { kind = "oracle" }
+scenario = { town = "town10", placement = "standard" }
+[[cells]]
+name = "gate"
+[[cells]]
+name = "no gate"
+scenario = { placement = "far" }
+policy = { trigger_dist_m = inf }
+""")
+    experiment = load_experiment(path)
+    # (outcome, bumper to line at rest, bumper to sign at rest, braking began before the sign) [m]
+    runs = {"gate": [("stopped_before_line", 7.3, 17.0, 42.6), ("stopped_before_line", 98.2, 108.0, 133.2),
+                     ("stopped_before_line", 102.4, 112.2, 137.5)],
+            "no gate": [("stopped_before_line", 98.2, 108.0, 133.2)]}
+    records = [{"experiment": "rates", "cell": cell, "seed": k, "status": "ok", "trace": {},
+                "result": {"outcome": outcome, "margin_m": margin, "sign_margin_m": sign_margin, "dist_at_brake_m": brake,
+                           "speed_at_brake_mps": 23.5, "stop_required": True,
+                           "config": experiment.cell(cell).config.to_dict()}}
+               for cell, cell_runs in runs.items() for k, (outcome, margin, sign_margin, brake) in enumerate(cell_runs)]
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")[1:]]
+            for line in stop_rates(Cells(records), experiment) if line.startswith("| ") and "placement" not in line}
+    # Still counted as stops, as in the study; the count beside says how many began braking outside the gate.
+    assert rows["town10 standard"] == ["3/3 (0.44–1.00); 79.1 ± 53.8 m; 2 at rest beyond the gate"]
+    assert rows["town10 far"] == ["1/1 (0.21–1.00); 108.0 m"]  # no gate: nothing to be beyond
+    assert rows["all cells"] == ["4/4 (0.51–1.00); 86.3 ± 46.2 m; 2 at rest beyond the gate"]
+    lines = findings(Cells(records), [experiment])
+    named = [line for line in lines if line.startswith("- ") and "beyond the" in line]
+    assert len(named) == 1 and named[0].endswith(
+        "/ gate: 2 of 3 finished runs came to rest 98.2–102.4 m before the stop line, beyond the 40 m gate; "
+        "braking began 133.2–137.5 m before the sign.")

@@ -42,6 +42,8 @@ SHIPPED["table3_coco.toml"] = SHIPPED["table3_yolo.toml"] = SHIPPED["table3_stop
 SHIPPED["table3_yolo_clusters.toml"] = SHIPPED["table3_stop_positions.toml"]
 # The COCO closed loop in Town10 under three scenes (flat, sheeting, sheeting and textured)
 SHIPPED["coco_detector_realism.toml"] = [("clean", policy) for _ in range(3 * 2) for policy in ("baseline", "adjusted")]
+# Its Town10 standard and far cells alone, to run under a render setting (`--setting`)
+SHIPPED["coco_detector_town10.toml"] = [("clean", policy) for _ in range(2) for policy in ("baseline", "adjusted")]
 # Table III's four cells that see, under six scenes (flat, textured, clusters, all, daylight, no_shadows)
 SCENES_OF_TABLE3_REALISM = ("flat", "textured", "clusters", "all", "daylight", "no_shadows")
 SHIPPED["table3_realism.toml"] = SHIPPED["table3_stop_positions.toml"][:4] * len(SCENES_OF_TABLE3_REALISM)
@@ -57,10 +59,11 @@ REPORT_KIND = {"table3_stop_positions.toml": "table3", "table1_clean_defended.to
                "coco_detector.toml": "stop_rates", "yolo_detector.toml": "stop_rates",
                "table3_coco.toml": "table3", "table3_yolo.toml": "table3",
                "table3_yolo_clusters.toml": "table3", "coco_detector_realism.toml": "cells",
-               "table3_realism.toml": "cells", "sky_brightness.toml": "cells"}
+               "coco_detector_town10.toml": "stop_rates", "table3_realism.toml": "cells", "sky_brightness.toml": "cells"}
 # file name -> the perception its runs see through (avsim's own detector where not named)
 PERCEPTION_KIND = {"coco_detector.toml": "coco", "yolo_detector.toml": "yolo", "table3_coco.toml": "coco",
-                   "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo", "coco_detector_realism.toml": "coco"}
+                   "table3_yolo.toml": "yolo", "table3_yolo_clusters.toml": "yolo", "coco_detector_realism.toml": "coco",
+                   "coco_detector_town10.toml": "coco"}
 # files whose cells cover every town and placement (the rest are Town07 standard)
 EVERY_PLACE = ("coco_detector.toml", "yolo_detector.toml")
 EVERY_TOWN_AND_PLACEMENT = [(town, placement) for town in ("town03", "town07", "town10") for placement in ("near", "standard", "far")]
@@ -97,6 +100,8 @@ def test_shipped_file_loads_with_the_study_cells(name):
         assert places == [place for place in EVERY_TOWN_AND_PLACEMENT for _ in range(5)]
     elif name == "coco_detector_realism.toml":
         assert places == [("town10", placement) for _ in range(3) for placement in ("standard", "far") for _ in range(2)]
+    elif name == "coco_detector_town10.toml":
+        assert places == [("town10", placement) for placement in ("standard", "far") for _ in range(2)]
     else:
         assert {(c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells} == {("town07", "standard")}
 
@@ -122,6 +127,14 @@ def test_the_coco_realism_file_is_coco_detectors_town10_cells_under_three_scenes
     scenes = {"flat": {}, "sheeting": {"sign_materials": "sheeting"},
               "textured": {"sign_materials": "sheeting", "materials": "textured"}}
     _assert_runs_are_the_references_under_scenes(realism, coco, scenes)
+
+
+def test_the_coco_town10_file_is_coco_detectors_town10_standard_and_far_runs_config_for_config():
+    town10 = load_experiment(EXPERIMENTS_DIR / "coco_detector_town10.toml")
+    coco = load_experiment(EXPERIMENTS_DIR / "coco_detector.toml")
+    coco_runs = {(r.cell_name, r.seed): r.config for r in coco.runs()}
+    runs = town10.runs()
+    assert runs and all(coco_runs[(run.cell_name, run.seed)] == run.config for run in runs)
 
 
 def test_the_table3_realism_file_is_table3s_cells_under_six_scenes():
