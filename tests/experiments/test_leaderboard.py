@@ -11,7 +11,8 @@ from avsim.cli import main
 from avsim.errors import ConfigError
 from avsim.experiments.leaderboard import AVAILABILITY, DEFAULT_FILE, SAFETY, load_leaderboard, unique_specs
 from avsim.experiments.leaderboard_run import run_leaderboard
-from avsim.experiments.leaderboard_report import Results, pareto_front, rows
+from avsim.experiments.leaderboard_report import Results, condition_table, pareto_front, rows
+from avsim.experiments.run_task import config_hash
 from avsim.experiments.results_file import read_records
 
 NEW_DEFENCES = ("temporal_vote", "map_prior", "ensemble_or", "ensemble_and", "purify_jpeg", "purify_median")
@@ -166,6 +167,20 @@ def test_a_small_board_runs_writes_its_report_and_resumes_without_running_again(
     assert table["baseline"].attacked == (2, 2) and table["map_prior"].attacked == (4, 4)
     assert table["baseline"].frames_per_step == 0  # the oracle runs no network
     assert pareto_front(table.values()) == {"baseline"}
+
+
+def test_a_stop_that_came_to_rest_beyond_the_braking_gate_is_counted_beside_its_conditions_stop_rate(tmp_path):
+    board = load_leaderboard(write(tmp_path, TINY))
+    runs = [run for run in board.runs() if run.kind == SAFETY]
+    # Every run stops; the attacked ones (yang) 98 m before the line, beyond the 40 m gate, the clean ones 7 m before it.
+    records = [{"spec_hash": config_hash(run.config), "status": "ok", "wall_s": 1.0, "cell": run.defence, "seed": 0,
+                "result": {"outcome": "stopped_before_line", "stop_required": True, "sign_margin_m": margin + 1.0,
+                           "margin_m": margin, "config": run.config.to_dict()}}
+               for run in runs for margin in [98.2 if run.config.scenario.sign == "yang" else 7.3]]
+    table = {tuple(c.strip() for c in line.strip("|").split("|")[:2]): line
+             for line in condition_table(board, Results(runs, records)) if line.startswith("| ") and "condition" not in line}
+    assert "2/2 (0.34–1.00); 2 at rest beyond the gate" in table[("baseline", "strongest")]
+    assert "beyond" not in table[("baseline", "clean")] and "2/2 (0.34–1.00) |" in table[("baseline", "clean")]
 
 
 def test_an_existing_board_folder_is_not_overwritten_without_resume(tmp_path):
