@@ -13,7 +13,7 @@ from avsim.config import SimConfig
 from avsim.errors import ConfigError
 from avsim.experiments.results_file import read_records
 from avsim.experiments.sweep import load_sweep
-from avsim.experiments.sweep_report import front_measures, ordered_by_strength, safety_map, sign_strength
+from avsim.experiments.sweep_report import front_measures, ordered_by_strength, run_cell_text, safety_map, sign_strength
 
 SWEEPS_DIR = Path(__file__).resolve().parents[2] / "experiments" / "sweeps"
 SMOKE = SWEEPS_DIR / "sweep_smoke.toml"
@@ -241,6 +241,17 @@ def test_safety_map_is_the_highest_speed_at_which_every_run_stopped_before_the_s
     cell = smap.cells[("side_camera", "yang", 30.0)]
     assert (cell.runs, cell.stopped, cell.failed, cell.safe) == (2, 1, 1, False)
     assert smap.cells[("baseline", "clean", 90.0)].sign_margins_m == (1.0, -2.0)
+
+
+def test_a_stop_beyond_the_braking_gate_is_counted_in_its_speed_cell_and_is_still_a_stop():
+    gate_40 = {"policy": {"trigger_dist_m": 40.0}}
+    records = [_record("baseline", "clean", 85, "stopped_before_line", seed=k, margin=margin + 1.0) for k, margin in
+               enumerate((98.2, 7.3))]
+    for record, margin in zip(records, (98.2, 7.3)):
+        record["result"] |= {"margin_m": margin, "stop_required": True, "config": gate_40}
+    cell = safety_map(records, SimConfig()).cells[("baseline", "clean", 85.0)]
+    assert (cell.stopped, cell.beyond_gate, cell.safe) == (2, 1, True)
+    assert run_cell_text(cell) == "2/2; 1 beyond the gate"
 
 
 def test_safety_map_takes_keys_the_grid_does_not_vary_from_the_base_config():
