@@ -3,7 +3,8 @@
 What each figure means (the report says it too):
 - **safety**: the share of the defence's runs under attack (the strongest non-adaptive attack
   and its own adaptive attack, every place and seed) that stopped with the bumper at or before
-  the sign (`avsim.metrics.STOPPED_BEFORE_SIGN`), with its Wilson 95 % interval;
+  the sign (`avsim.metrics.STOPPED_BEFORE_SIGN`), with its Wilson 95 % interval; a stop that came to rest
+  beyond the braking gate (`avsim.metrics.rested_beyond_gate`) counts, and the condition table says how many;
 - **availability**: 1 - the phantom-brake rate, the share of its availability runs (no stop
   required) with a brake command above `avsim.metrics.PHANTOM_BRAKE_LEVEL`;
 - margins: bumper to sign at the end of the runs under attack [m], negative past it;
