@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -126,6 +127,20 @@ def rested_beyond_gate(stop_required: bool, outcome: str, margin_m: float | None
     (STOPPED_BEFORE_SIGN), as in the study; reports name it beside the stop rates."""
     return (stop_required and outcome in STOPPED_BEFORE_SIGN and trigger_dist_m is not None
             and margin_m is not None and margin_m > trigger_dist_m)
+
+
+# What such a stop means, as the reports that count it say it.
+BEYOND_GATE_CAUSE = ("braking began outside the gate, on a range that read nearer than the line by more than the car's "
+                     "stopping distance (a false stop sign, or the sign's box stretched over what stands behind it)")
+
+
+def record_rested_beyond_gate(result: Mapping[str, Any]) -> bool:
+    """`rested_beyond_gate` of a run's result record (`RunResult.to_json_dict`, as runs.jsonl keeps it), at the
+    gate of the policy in its own config. A record without `margin_m` (no stop position) never did."""
+    if result.get("margin_m") is None:
+        return False
+    return rested_beyond_gate(result.get("stop_required", True), result["outcome"], result["margin_m"],
+                              result["config"]["policy"]["trigger_dist_m"])
 
 
 def comfort_peaks(records: list[StepRecord], last: StepRecord) -> tuple[float | None, float | None]:

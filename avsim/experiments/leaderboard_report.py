@@ -4,7 +4,7 @@ What each figure means (the report says it too):
 - **safety**: the share of the defence's runs under attack (the strongest non-adaptive attack
   and its own adaptive attack, every place and seed) that stopped with the bumper at or before
   the sign (`avsim.metrics.STOPPED_BEFORE_SIGN`), with its Wilson 95 % interval; a stop that came to rest
-  beyond the braking gate (`avsim.metrics.rested_beyond_gate`) counts, and the condition table says how many;
+  beyond the braking gate (`avsim.metrics.record_rested_beyond_gate`) counts, and the condition table says how many;
 - **availability**: 1 - the phantom-brake rate, the share of its availability runs (no stop
   required) with a brake command above `avsim.metrics.PHANTOM_BRAKE_LEVEL`;
 - margins: bumper to sign at the end of the runs under attack [m], negative past it;
@@ -29,7 +29,8 @@ from typing import Any
 from avsim.control.policies import POLICIES
 from avsim.experiments.run_task import config_hash
 from avsim.experiments.leaderboard import AVAILABILITY, CONDITIONS, SAFETY, Leaderboard, LeaderboardRun
-from avsim.metrics import PHANTOM_BRAKE_LEVEL, STOPPED_BEFORE_SIGN, is_phantom_brake, rested_beyond_gate, write_text_atomic
+from avsim.metrics import (BEYOND_GATE_CAUSE, PHANTOM_BRAKE_LEVEL, STOPPED_BEFORE_SIGN, is_phantom_brake,
+                           record_rested_beyond_gate, write_text_atomic)
 from avsim.perception.factory import networks_per_frame
 from avsim.software import versions_sentence
 from avsim.stats import rate_with_interval, wilson_interval
@@ -89,12 +90,6 @@ class Results:
 
 def _stopped(results: list[dict[str, Any]]) -> tuple[int, int]:
     return sum(r["outcome"] in STOPPED_BEFORE_SIGN for r in results), len(results)
-
-
-def _beyond_gate(results: list[dict[str, Any]]) -> int:
-    """How many of the runs' stops came to rest farther before the line than their braking gate reaches."""
-    return sum(rested_beyond_gate(r.get("stop_required", True), r["outcome"], r.get("margin_m"),
-                                  r["config"]["policy"]["trigger_dist_m"]) for r in results)
 
 
 def rows(board: Leaderboard, results: Results) -> list[Row]:
@@ -173,7 +168,7 @@ def condition_table(board: Leaderboard, results: Results) -> list[str]:
                 sign += " (the strongest attack's runs: no adaptive texture yet)"
             elif condition.overrides.get("scenario", {}).get("map_error"):
                 sign += f", map: {condition.overrides['scenario']['map_error']}"
-            beyond = _beyond_gate(found)
+            beyond = sum(map(record_rested_beyond_gate, found))
             body.append([defence.name, name, sign, _rate(*_stopped(found)) + (f"; {beyond} at rest beyond the gate" if beyond else "")
                          + (f" ({failed} failed)" if failed else ""),
                          f"{statistics.fmean(margins):.1f}" if margins else "–", f"{min(margins):.1f}" if margins else "–"])
@@ -229,8 +224,7 @@ def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Iterable[L
         f"![safety against availability]({figure.name})", "",
         "## Under attack, by condition", "",
         "A stop \"at rest beyond the gate\" came to rest farther before the stop line than the braking gate reaches: "
-        "braking began outside the gate, on a range that read nearer than the line by more than the car's stopping "
-        "distance (a false stop sign, or the sign's box stretched over what stands behind it). It counts as a stop.", "",
+        f"{BEYOND_GATE_CAUSE}. It counts as a stop.", "",
         *condition_table(board, results),
         "## Under attack, by place", "", "Stopped before the sign under the strongest and the adaptive attack.", "",
         *place_table(board, results),

@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from avsim.config import VehicleConfig, with_overrides
-from avsim.metrics import STOPPED_BEFORE_SIGN, rested_beyond_gate
+from avsim.metrics import STOPPED_BEFORE_SIGN, record_rested_beyond_gate
 from avsim.vehicle.brake_test import full_brake_decel_mps2
 
 Record = dict[str, Any]
@@ -24,10 +24,9 @@ def origin_before_sign_m(result: dict[str, Any]) -> float:
     return result["sign_position_m"][0] - result["stop_position_m"][0]
 
 
-def beyond_gate(results: Sequence[dict[str, Any]], trigger_dist_m: float | None) -> list[dict[str, Any]]:
-    """The runs of one cell whose required stop ended beyond its braking gate (`avsim.metrics.rested_beyond_gate`)."""
-    return [r for r in results
-            if rested_beyond_gate(r.get("stop_required", True), r["outcome"], r.get("margin_m"), trigger_dist_m)]
+def beyond_gate(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The results whose required stop ended beyond their braking gate (`avsim.metrics.record_rested_beyond_gate`)."""
+    return [r for r in results if record_rested_beyond_gate(r)]
 
 
 def fmt(values: Sequence[float | None], digits: int = 1) -> str:

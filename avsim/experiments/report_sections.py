@@ -94,7 +94,7 @@ def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
     stem = experiment.name
     places = list(dict.fromkeys((c.config.scenario.town, c.config.scenario.placement) for c in experiment.cells))
     policies = list(dict.fromkeys(c.config.policy.name for c in experiment.cells))
-    by_place = {(c.config.scenario.town, c.config.scenario.placement, c.config.policy.name): c for c in experiment.cells}
+    by_place = {(c.config.scenario.town, c.config.scenario.placement, c.config.policy.name): c.name for c in experiment.cells}
     pooled: dict[str, list[dict[str, Any]]] = defaultdict(list)
     pooled_beyond: dict[str, int] = defaultdict(int)
 
@@ -105,14 +105,14 @@ def stop_rates(cells: Cells, experiment: Experiment) -> list[str]:
     for town, placement in places:
         row = [f"{town} {placement}"]
         for policy in policies:
-            cell = by_place.get((town, placement, policy))
-            if cell is None:  # no such cell
+            name = by_place.get((town, placement, policy))
+            if name is None:  # no such cell
                 row.append("–")
                 continue
-            results = cells.of(stem, cell.name)
+            results = cells.of(stem, name)
             pooled[policy] += results
-            failed = cells.failed.get((stem, cell.name), 0)
-            beyond = len(beyond_gate(results, cell.config.policy.trigger_dist_m))
+            failed = cells.failed.get((stem, name), 0)
+            beyond = len(beyond_gate(results))
             pooled_beyond[policy] += beyond
             row.append(f"{rate(results)}; {fmt([r['sign_margin_m'] for r in results])} m"
                        + _beyond_gate_note(beyond) + (f"; {failed} failed" if failed else ""))

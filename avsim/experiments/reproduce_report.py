@@ -24,7 +24,7 @@ from avsim.experiments.report_cells import (Cells, Record, beyond_gate, fmt, mar
 from avsim.experiments.report_sections import (adaptive_answer, attack_success_section, compare_section,
                                                sensitivity_section, stop_rates)
 from avsim.experiments.spec import Experiment
-from avsim.metrics import STOPPED_BEFORE_SIGN, write_text_atomic
+from avsim.metrics import BEYOND_GATE_CAUSE, STOPPED_BEFORE_SIGN, write_text_atomic
 from avsim.software import versions_sentence
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 
@@ -140,7 +140,7 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
             elif past:
                 kind = "defence" if config.policy.name in DEFENCES else "undefended run at the clean sign"
                 failures.append(f"- {where} ({kind}): {_did_not_stop(past)} in {len(past)} of {len(results)} finished runs{_needed(past)}.")
-            if beyond := beyond_gate(results, config.policy.trigger_dist_m):
+            if beyond := beyond_gate(results):
                 short.append(f"- {where}: {len(beyond)} of {len(results)} finished runs came to rest "
                              f"{_span([r['margin_m'] for r in beyond])} m before the stop line, beyond the "
                              f"{config.policy.trigger_dist_m:g} m gate; braking began "
@@ -154,9 +154,7 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
                               f"{' (the failed runs below have no outcome)' if unknown else ''}."]
     if short:
         lines += ["", "Runs counted as stopped that came to rest farther before the stop line than the braking gate "
-                  "reaches: braking began outside the gate, on a range that read nearer than the line by more than the "
-                  "car's stopping distance (a false stop sign, or the sign's box stretched over what stands behind it):",
-                  "", *short]
+                  f"reaches: {BEYOND_GATE_CAUSE}:", "", *short]
     if unknown:
         lines += ["", f"Runs that failed, and have no outcome: {'; '.join(unknown)}."]
     if attacks:

@@ -29,7 +29,7 @@ from typing import Any
 
 from avsim.config import SimConfig
 from avsim.errors import ConfigError
-from avsim.metrics import STOPPED_BEFORE_SIGN, rested_beyond_gate, write_text_atomic
+from avsim.metrics import BEYOND_GATE_CAUSE, STOPPED_BEFORE_SIGN, record_rested_beyond_gate, write_text_atomic
 from avsim.software import versions_sentence
 
 SPEED_KEY, SIGN_KEY, POLICY_KEY = "scenario.speed_kmh", "scenario.sign", "policy.name"
@@ -49,7 +49,7 @@ class SpeedOutcome:
     sign_margins_m: tuple[float, ...]
     outcomes: tuple[str, ...]
     # Of the stops, how many came to rest farther before the line than the braking gate reaches
-    # (`avsim.metrics.rested_beyond_gate`): braking began outside the gate, on a range read far too near.
+    # (`avsim.metrics.record_rested_beyond_gate`): braking began outside the gate, on a range read far too near.
     beyond_gate: int = 0
 
     @property
@@ -106,7 +106,7 @@ def safety_map(records: Sequence[Mapping[str, Any]], base: SimConfig) -> SafetyM
             stopped=sum(1 for r in ok if r["result"]["outcome"] in STOPPED_BEFORE_SIGN),
             sign_margins_m=tuple(r["result"]["sign_margin_m"] for r in ok),
             outcomes=tuple(r["result"]["outcome"] for r in ok),
-            beyond_gate=sum(_rested_beyond_gate(r["result"]) for r in ok))
+            beyond_gate=sum(record_rested_beyond_gate(r["result"]) for r in ok))
     return SafetyMap(speeds_kmh=tuple(sorted({s for _, _, s in groups})),
                      policies=tuple(dict.fromkeys(p for p, _, _ in groups)),
                      signs=tuple(dict.fromkeys(s for _, s, _ in groups)), cells=cells)
@@ -245,7 +245,7 @@ def summary_markdown(sweep, smap: SafetyMap, strengths: Sequence[Strength], fron
               "`past`: braked but ran past the sign; `never braked`: ran past without braking; `timed out`: the time "
               "limit ended the run before the sign; with several runs, how many stopped before the sign, and how many of "
               "those stops came to rest farther before the stop line than the braking gate reaches (\"beyond the gate\": "
-              "braking began outside the gate, on a false stop sign or a stretched box; a stop all the same).", "",
+              f"{BEYOND_GATE_CAUSE}; a stop all the same).", "",
               "| policy | sign | " + " | ".join(f"{s:g}" for s in smap.speeds_kmh) + " |",
               "|---|---|" + "---:|" * len(smap.speeds_kmh)]
     for policy in smap.policies:
@@ -291,11 +291,6 @@ def _tick(strength: Strength, measure: FrontMeasure | None) -> str:
     return f"{strength.label}\nfront sure at {sure}"
 
 
-def _rested_beyond_gate(result: Mapping[str, Any]) -> bool:
-    gate_m = result.get("config", {}).get("policy", {}).get("trigger_dist_m")
-    return rested_beyond_gate(result.get("stop_required", True), result["outcome"], result.get("margin_m"), gate_m)
-
-
 def _safe_cell(smap: SafetyMap, policy: str, sign: str) -> str:
     best, up_to = smap.max_safe_kmh(policy, sign), smap.safe_up_to_kmh(policy, sign)
     if best is None:
@@ -305,8 +300,9 @@ def _safe_cell(smap: SafetyMap, policy: str, sign: str) -> str:
     return f"{best:g}* ({'none' if up_to is None else f'{up_to:g}'})"
 
 
-def run_cell_text(cell: SpeedOutcome | None) -> str:
-    """What the "Every run" table shows for one (policy, sign, speed): the one run's end, or the stop count."""
+def run_cell_text(cell: SpeedOutcome | None, beyond_gate_note: bool = True) -> str:
+    """What the "Every run" table shows for one (policy, sign, speed): the one run's end, or the stop count
+    (with `beyond_gate_note`, and how many of those stops came to rest beyond the gate)."""
     if cell is None:
         return ""
     if cell.runs == 1:
@@ -315,7 +311,8 @@ def run_cell_text(cell: SpeedOutcome | None) -> str:
         outcome, margin = cell.outcomes[0], cell.sign_margins_m[0]
         return {"stopped_before_line": f"{margin:.1f} line", "stopped_past_line": f"{margin:.1f}",
                 "ran_past_sign": "past", "never_braked": "never braked", "timed_out_before_sign": "timed out"}[outcome]
-    return (f"{cell.stopped}/{cell.runs}" + (f"; {cell.beyond_gate} beyond the gate" if cell.beyond_gate else "")
+    note = f"; {cell.beyond_gate} beyond the gate" if beyond_gate_note and cell.beyond_gate else ""
+    return (f"{cell.stopped}/{cell.runs}" + note
             + (f" ({cell.failed} failed)" if cell.failed else ""))
 
 
@@ -370,7 +367,7 @@ def draw_safety_map(path: Path, smap: SafetyMap, strengths: Sequence[Strength], 
                 if cell is not None and not cell.failed:
                     frac[i, j] = cell.stopped / cell.runs
                 if cell is not None:
-                    panel.text(j, i, run_cell_text(cell).split(";")[0].replace(" line", ""), ha="center", va="center", fontsize=6)
+                    panel.text(j, i, run_cell_text(cell, beyond_gate_note=False).replace(" line", ""), ha="center", va="center", fontsize=6)
         panel.imshow(np.ma.masked_invalid(frac), cmap=cmap, vmin=0, vmax=1, origin="lower", aspect="auto")
         panel.set_xticks(range(len(strengths)), [s.label.replace(" ", "\n", 1) for s in strengths], fontsize=6)
         panel.set_yticks(range(len(smap.speeds_kmh)), [f"{s:g}" for s in smap.speeds_kmh], fontsize=7)

@@ -402,6 +402,12 @@ def test_a_sensitivity_report_tabulates_each_varied_constant_with_the_others_at_
     assert "| baseline | clean | 2/2 (0.34–1.00), 1.0 ± 0.0 m | 1/2 (0.09–0.91), -1.0 ± 2.8 m |" in text
 
 
+def _stop_rate_rows(lines: list[str]) -> dict[str, list[str]]:
+    """A stop-rates table's body as {town and placement: its cells, one a policy}."""
+    return {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")[1:]]
+            for line in lines if line.startswith("| ") and "placement" not in line}
+
+
 def test_a_stop_rates_report_gives_each_policy_and_place_its_rate_interval_and_margin(tmp_path):
     from avsim.experiments.report_cells import Cells
     from avsim.experiments.report_sections import stop_rates
@@ -431,8 +437,7 @@ scenario = { town = "town10", placement = "far" }
                for cell, runs in outcomes.items() for k, (outcome, margin) in enumerate(runs)]
     records.append({"experiment": "rates", "cell": "b, baseline", "seed": 1, "status": "failed", "result": None,
                     "trace": None, "error": "RenderError: x"})
-    rows = {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")[1:]]
-            for line in stop_rates(Cells(records), experiment) if line.startswith("| ") and "placement" not in line}
+    rows = _stop_rate_rows(stop_rates(Cells(records), experiment))
     assert rows["town07 near"] == ["1/2 (0.09–0.91); 1.0 ± 2.8 m", "1/1 (0.21–1.00); 0.5 m"]
     assert rows["town10 far"] == ["0/1 (0.00–0.79); -40.0 m; 1 failed", "–"]
     assert rows["all cells"] == ["1/3 (0.06–0.79); -12.7 ± 23.8 m", "1/1 (0.21–1.00); 0.5 m"]
@@ -467,8 +472,7 @@ policy = { trigger_dist_m = inf }
                            "speed_at_brake_mps": 23.5, "stop_required": True,
                            "config": experiment.cell(cell).config.to_dict()}}
                for cell, cell_runs in runs.items() for k, (outcome, margin, sign_margin, brake) in enumerate(cell_runs)]
-    rows = {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")[1:]]
-            for line in stop_rates(Cells(records), experiment) if line.startswith("| ") and "placement" not in line}
+    rows = _stop_rate_rows(stop_rates(Cells(records), experiment))
     # Still counted as stops, as in the study; the count beside says how many began braking outside the gate.
     assert rows["town10 standard"] == ["3/3 (0.44–1.00); 79.1 ± 53.8 m; 2 at rest beyond the gate"]
     assert rows["town10 far"] == ["1/1 (0.21–1.00); 108.0 m"]  # no gate: nothing to be beyond
