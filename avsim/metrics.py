@@ -106,6 +106,13 @@ class RunResult:
         """Whether it braked above PHANTOM_BRAKE_LEVEL where no stop was required."""
         return is_phantom_brake(self.stop_required, self.max_brake)
 
+    @property
+    def rested_beyond_gate(self) -> bool:
+        """Whether a required stop came to rest farther before the line than its policy's braking gate
+        (`rested_beyond_gate`); a config without a policy gate never did."""
+        return rested_beyond_gate(self.stop_required, self.outcome, self.margin_m,
+                                  self.config.get("policy", {}).get("trigger_dist_m"))
+
     def to_json_dict(self) -> dict[str, Any]:
         """The record as a JSON-ready dict, one key per field (the keys of `avsim run --json` and results.jsonl)."""
         return asdict(self)

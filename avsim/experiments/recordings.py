@@ -3,8 +3,8 @@
     specs = with_recordings(specs, out_dir, rrd="failed", mcap="none")    # an iterator: each spec as it is drawn
 
 none    no recordings;
-failed  only the runs whose car failed (`avsim.experiments.failures`: ran the sign, phantom
-        stop, ...), the default for `--rrd`: what a researcher needs to inspect a surprise;
+failed  only the runs whose car failed (`avsim.experiments.failures`: ran the sign, stopped
+        short of the braking gate, phantom stop, ...), the default for `--rrd`: what a researcher needs to inspect a surprise;
 all     every run.
 
 Under `failed` every run is recorded, to a temporary file, and the recording is kept only when

@@ -117,3 +117,22 @@ def test_which_outcomes_are_failures(outcome, stop_required, max_brake, failed):
     result = RunResult([0.0, 0.0], [0.0, 0.0], 0.0, None, None, None, 20.0, {}, outcome, 0.0, None, None, 10.0,
                        max_brake=max_brake, stop_required=stop_required)
     assert is_failed_run(result) == failed
+
+
+@pytest.mark.parametrize(("outcome", "margin_m", "failed"), [
+    ("stopped_before_line", 101.0, True),   # braked on something ~135 m out, as the COCO net on Town10's yield sign
+    ("stopped_before_line", 40.0, False),   # at the gate itself: braking began inside it
+    ("stopped_before_line", 4.9, False),    # the study's stop
+    ("ran_past_sign", -3.0, True),
+])
+def test_a_stop_at_rest_beyond_the_braking_gate_is_a_failure_worth_recording(outcome, margin_m, failed):
+    result = RunResult([0.0, 0.0], [0.0, 0.0], margin_m, 3.0, 130.0, 140.0, 23.6, {"policy": {"trigger_dist_m": 40.0}},
+                       outcome, margin_m + 1.0, 8.0, 23.6, 20.0, max_brake=1.0)
+    assert result.rested_beyond_gate == (margin_m > 40.0)
+    assert is_failed_run(result) == failed
+
+
+def test_a_config_without_a_braking_gate_never_rests_beyond_it():
+    result = RunResult([0.0, 0.0], [0.0, 0.0], 101.0, 3.0, 130.0, 140.0, 23.6, {"policy": {"trigger_dist_m": None}},
+                       "stopped_before_line", 102.0, 8.0, 23.6, 20.0, max_brake=1.0)
+    assert not result.rested_beyond_gate and not is_failed_run(result)
