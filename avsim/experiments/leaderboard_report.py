@@ -224,7 +224,7 @@ def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Iterable[L
         f"![safety against availability]({figure.name})", "",
         "## Under attack, by condition", "",
         "A stop \"at rest beyond the gate\" came to rest farther before the stop line than the braking gate reaches: "
-        f"{BEYOND_GATE_CAUSE}. It counts as a stop.", "",
+        f"{BEYOND_GATE_CAUSE}. It counts as a stop; `--rrd failed` (the default) records it, as a failed car.", "",
         *condition_table(board, results),
         "## Under attack, by place", "", "Stopped before the sign under the strongest and the adaptive attack.", "",
         *place_table(board, results),

@@ -154,7 +154,7 @@ def findings(cells: Cells, experiments: Sequence[Experiment]) -> list[str]:
                               f"{' (the failed runs below have no outcome)' if unknown else ''}."]
     if short:
         lines += ["", "Runs counted as stopped that came to rest farther before the stop line than the braking gate "
-                  f"reaches: {BEYOND_GATE_CAUSE}:", "", *short]
+                  f"reaches: {BEYOND_GATE_CAUSE}. `--rrd failed` (the default) records them, as failed cars:", "", *short]
     if unknown:
         lines += ["", f"Runs that failed, and have no outcome: {'; '.join(unknown)}."]
     if attacks:
