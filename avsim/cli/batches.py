@@ -15,6 +15,14 @@ from avsim.realism.settings import SETTINGS
 from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 
+def _recordings_written(out: Path, rrd_mode: str, mcap_mode: str) -> str:
+    """"; recordings (--rrd failed) under OUT/rrd/", naming only the kinds asked for; "" for none."""
+    asked = [(f"--{kind} {mode}", f"{out}/{kind}/") for kind, mode in (("rrd", rrd_mode), ("mcap", mcap_mode)) if mode != "none"]
+    if not asked:
+        return ""
+    return f"; recordings ({', '.join(flag for flag, _ in asked)}) under {' and '.join(folder for _, folder in asked)}"
+
+
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from avsim.experiments.reproduce import reproduce
 
@@ -25,8 +33,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
                     rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting)
     print((out / "report.md").read_text())
-    print(f"wrote {out}/report.md, runs.jsonl and figures" + (f"; recordings (--rrd {args.rrd_mode}, --mcap {args.mcap_mode}) "
-                                                             f"under {out}/rrd/ and {out}/mcap/" if args.rrd_mode != "none" or args.mcap_mode != "none" else ""))
+    print(f"wrote {out}/report.md, runs.jsonl and figures{_recordings_written(out, args.rrd_mode, args.mcap_mode)}")
     return 0
 
 
