@@ -17,7 +17,8 @@ from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 def _recordings_written(out: Path, rrd_mode: str, mcap_mode: str) -> str:
     """"; recordings (--rrd failed) under OUT/rrd/", naming only the kinds asked for; "" for none."""
-    asked = [(f"--{kind} {mode}", f"{out}/{kind}/") for kind, mode in (("rrd", rrd_mode), ("mcap", mcap_mode)) if mode != "none"]
+    asked = [(f"--{kind} {mode}", f"{out}/{kind}/")
+             for kind, mode in (("rrd", rrd_mode), ("mcap", mcap_mode)) if mode != "none"]
     if not asked:
         return ""
     return f"; recordings ({', '.join(flag for flag, _ in asked)}) under {' and '.join(folder for _, folder in asked)}"

@@ -17,8 +17,9 @@ def add_recording_modes(parser: argparse.ArgumentParser, prefix: str = "") -> No
     # dest *_mode: these name runs, not files (`avsim run --rrd FILE` is an output path).
     parser.add_argument("--rrd", dest="rrd_mode", default="failed", choices=RECORD_CHOICES,
                         help=f"{prefix}rerun recordings of no run, the runs whose car failed (ran the sign, a phantom "
-                             "stop, a stop short of the braking gate; the default) or every run, under OUT/rrd/; any run is recorded later by avsim run "
-                             "--config ... --cell ... --seed ... --rrd FILE (docs/recording.md)")
+                             "stop, a stop short of the braking gate; the default) or every run, under OUT/rrd/; any "
+                             "run is recorded later by avsim run --config ... --cell ... --seed ... --rrd FILE "
+                             "(docs/recording.md)")
     parser.add_argument("--mcap", dest="mcap_mode", default="none", choices=RECORD_CHOICES,
                         help=f"{prefix}ROS 2 bags (MCAP, needs avsim[ros]) of the same choice of runs, under OUT/mcap/ "
                              "(default none; docs/ros.md)")

@@ -4,7 +4,8 @@
 
 none    no recordings;
 failed  only the runs whose car failed (`avsim.experiments.failures`: ran the sign, stopped
-        short of the braking gate, phantom stop, ...), the default for `--rrd`: what a researcher needs to inspect a surprise;
+        short of the braking gate, phantom stop, ...), the default for `--rrd`: what a
+        researcher needs to inspect a surprise;
 all     every run.
 
 Under `failed` every run is recorded, to a temporary file, and the recording is kept only when
