@@ -34,7 +34,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
                     rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting)
     print((out / "report.md").read_text())
-    print(f"wrote {out}/report.md, runs.jsonl and figures{_recordings_written(out, args.rrd_mode, args.mcap_mode)}")
+    recordings = _recordings_written(out, args.rrd_mode, args.mcap_mode)
+    print(f"wrote {out}/report.md, runs.jsonl and figures{recordings}")
     return 0
 
 
@@ -47,7 +48,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "summary.md").read_text())
-    print(f"wrote {out}/results.jsonl, summary.md and safety_map.png")
+    recordings = _recordings_written(out, args.rrd_mode, args.mcap_mode)
+    print(f"wrote {out}/results.jsonl, summary.md and safety_map.png{recordings}")
     return 0
 
 
@@ -63,7 +65,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
                           progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch,
                           rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "leaderboard.md").read_text())
-    print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl")
+    recordings = _recordings_written(out, args.rrd_mode, args.mcap_mode)
+    print(f"wrote {out}/leaderboard.md, leaderboard.png and results.jsonl{recordings}")
     return 0
 
 
