@@ -16,7 +16,9 @@ from avsim.workers import BATCH_HELP, DEFAULT_BATCH
 
 
 def _recordings_written(out: Path, rrd_mode: str, mcap_mode: str) -> str:
-    """"; recordings (--rrd failed) under OUT/rrd/", naming only the kinds asked for; "" for none."""
+    """"; recordings (--rrd failed) under OUT/rrd/", naming only the kinds asked for; "" for none. Each kind's
+    folder is named as the kind, as `avsim.experiments.recordings.KINDS` names it (not imported: it imports the
+    simulator; a test holds them equal)."""
     asked = [(f"--{kind} {mode}", f"{out}/{kind}/")
              for kind, mode in (("rrd", rrd_mode), ("mcap", mcap_mode)) if mode != "none"]
     if not asked:

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from avsim.cli.batches import _recordings_written
+from avsim.experiments.recordings import KINDS
 
 
 def test_the_closing_line_names_only_the_recordings_asked_for():
@@ -12,3 +13,7 @@ def test_the_closing_line_names_only_the_recordings_asked_for():
     assert _recordings_written(out, "all", "failed") == ("; recordings (--rrd all, --mcap failed) under results/x/rrd/ "
                                                           "and results/x/mcap/")
     assert _recordings_written(out, "none", "none") == ""
+
+
+def test_the_folders_it_names_are_the_ones_the_recordings_go_to():
+    assert {kind: folder for kind, (folder, _) in KINDS.items()} == {"rrd": "rrd", "mcap": "mcap"}
