@@ -8,6 +8,7 @@ import argparse
 from pathlib import Path
 
 from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG, add_setting_flag
+from avsim.cli.overrides import parse_set
 from avsim.errors import ConfigError
 from avsim.cli.recording_modes import add_recording_modes
 from avsim.outputs import FOLDER, add_input_argument, add_output_argument
@@ -34,7 +35,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         raise ConfigError("give --out (a new reproduction's parent folder) or --resume FOLDER (the one to finish), not both")
     out = reproduce(args.out or "results", resume=args.resume, quick=args.quick, seeds=args.seeds, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
-                    rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting)
+                    rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting, overrides=parse_set(args.set))
     print((out / "report.md").read_text())
     recordings = _recordings_written(out, args.rrd_mode, args.mcap_mode)
     print(f"wrote {out}/report.md, runs.jsonl and figures{recordings}")
@@ -104,10 +105,14 @@ def add_commands(sub) -> None:
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
+    rep.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="give every run this config value, as if it stood in each file's [defaults], e.g. --set "
+                          "policy.conf_threshold=0.55 (repeatable); a key on which a file's cells differ, or that its "
+                          "[vary] draws, is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true",
                      help="run more than 10,000 runs, add experiment files to a --resume folder, or resume one under "
-                          "another --setting (each refused without it)")
+                          "another --setting or --set (each refused without it)")
     add_recording_modes(rep)
     rep.set_defaults(func=_cmd_reproduce)
 

@@ -9,6 +9,8 @@ writes `results/<timestamp>/`:
                           `avsim.experiments.recordings`; `rerun FILE.rrd` opens one)
     mcap/<experiment>/    ROS 2 bags of the runs `mcap` asks for (default none)
     experiments/          the experiment files as they were run
+    set.json              the --set values every run was given, when there were any
+                          (`avsim.experiments.set_overrides`), for a resume to check
     manifest.json         command, versions, workers, wall time, failures
     report.md, *.png      the study's tables beside ours, and the figures
 
@@ -28,8 +30,11 @@ import dataclasses
 import datetime as dt
 import os
 import shutil
+import json
 import time
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
@@ -44,6 +49,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
+from avsim.experiments.set_overrides import experiment_with_set, flags_of_items, flat_items, set_flags
 from avsim.experiments.spec import Experiment, check_networks, check_renderer, check_run_names, load_experiment, located
 from avsim.config_owners import dotted_keys
 from avsim.metrics import write_json_atomic
@@ -77,19 +83,24 @@ SETTING_EXPERIMENTS = ("coco_detector_town10",)
 
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,
-               yes: bool = False, seeds: int | None = None, setting: str = BASELINE) -> list[Experiment]:
+               yes: bool = False, seeds: int | None = None, setting: str = BASELINE,
+               overrides: Mapping[str, Any] | None = None) -> list[Experiment]:
     """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
     experiment file); `quick` keeps one seed per cell, `seeds` runs seeds 0 .. seeds - 1 in every
     cell instead of each file's own count. setting: one of `avsim realism`'s render settings, applied
-    to every cell (`avsim.experiments.render_setting`). yes: allow a plan of more than
-    `plan_size.RUNS_WITHOUT_YES` runs (counted before any run is built)."""
+    to every cell (`avsim.experiments.render_setting`). overrides: the --set values (nested, as
+    `avsim.cli.overrides.parse_set` gives them), given to every cell over the setting
+    (`avsim.experiments.set_overrides`). yes: allow a plan of more than `plan_size.RUNS_WITHOUT_YES`
+    runs (counted before any run is built)."""
     if quick and seeds is not None:
         raise ConfigError("--quick runs one seed per cell and --seeds N runs N; give one of them")
     names = STUDY_EXPERIMENTS + (MORE_EXPERIMENTS if everything else ())
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in names]
     if setting not in SETTINGS:
         raise ConfigError(f"unknown render setting {setting!r}; choose one of {', '.join(SETTINGS)} (docs/realism.md)")
-    experiments = [under_setting(load_experiment(path), SETTINGS[setting]) for path in paths]
+    setting_keys = dotted_keys(SETTINGS[setting].config_overrides())
+    experiments = [experiment_with_set(under_setting(load_experiment(path), SETTINGS[setting]), overrides or {},
+                                       setting_keys) for path in paths]
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
@@ -136,7 +147,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
               address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False,
               rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP, resume: str | os.PathLike | None = None,
-              setting: str = BASELINE) -> Path:
+              setting: str = BASELINE, overrides: Mapping[str, Any] | None = None) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
 
@@ -144,6 +155,10 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
 
     setting: render every run under one of `avsim realism`'s settings (`avsim.realism.settings`), as if
     its keys stood in each file's [defaults]; a file that sets one of them itself is refused.
+
+    overrides: `--set` values (nested: {"policy": {"conf_threshold": 0.55}}) given to every run, as if they
+    stood in each file's [defaults]; a key on which a file's cells differ, or that [vary] draws, is refused
+    (`avsim.experiments.set_overrides`).
 
     resume: a results folder of an earlier `reproduce` to finish instead of making a new one under
     `results_root`: its ok runs are kept and the rest run (module docstring).
@@ -155,7 +170,8 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     """
     if everything and experiment_paths:
         raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
-    experiments = load_study(experiment_paths, quick, everything, yes, seeds, setting)
+    overrides = dict(overrides or {})
+    experiments = load_study(experiment_paths, quick, everything, yes, seeds, setting, overrides)
     check_modes(rrd, mcap)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
@@ -166,20 +182,21 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         existing = resumable_records(out)
         check_resumed_selection(out, experiments, yes=yes)
         check_resumed_setting(out, experiments, existing, yes=yes)
+        check_resumed_set(out, overrides, yes=yes)
     else:
         out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
         existing = []
     selection = " ".join(part for part in (
         "--all" if everything else "", "--quick" if quick else "", f"--seeds {seeds}" if seeds is not None else "",
         "--experiments " + " ".join(map(str, experiment_paths)) if experiment_paths else "",
-        f"--setting {setting}" if setting != BASELINE else "",
+        f"--setting {setting}" if setting != BASELINE else "", set_flags(overrides),
         f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address else "",
         recording_flags(rrd, mcap).strip()) if part)
     # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no new folder.
     with locked_output(out, "avsim reproduce", results_name="runs.jsonl"):
         return _reproduce_into(out, experiments, existing, selection=selection, workers=workers, progress=progress,
                                backend=backend, address=address, started=started, started_at=started_at, batch=batch,
-                               rrd=rrd, mcap=mcap, resumed=resume is not None)
+                               rrd=rrd, mcap=mcap, resumed=resume is not None, overrides=overrides)
 
 
 def check_resumed_selection(folder: Path, experiments: list[Experiment], *, yes: bool) -> None:
@@ -235,6 +252,39 @@ def check_resumed_setting(folder: Path, experiments: list[Experiment], existing:
         return
 
 
+# The file in a reproduction's folder that holds the --set values its runs were given, written before the first
+# run: a resume without them (or with others) would run every run again into the folder, beside the first ones.
+SET_FILE = "set.json"
+
+
+def check_resumed_set(folder: Path, overrides: Mapping[str, Any], *, yes: bool) -> None:
+    """A one-line ConfigError when FOLDER's runs were given other --set values than this command's, unless `yes`."""
+    made_with = _folder_set(folder)
+    asked = json.loads(json.dumps(flat_items(overrides)))  # as JSON holds them: a list for a tuple
+    if made_with != asked and not yes:
+        made = flags_of_items(made_with) or "no --set"
+        this = set_flags(overrides) or "no --set"
+        raise ConfigError(f"--resume {folder}: its runs were given {made} and this command {this}, so every run "
+                          f"would run again into it; give the --set that made the folder (its {SET_FILE} and the "
+                          "command Ctrl-C printed name it), or add --yes to run the others into it")
+
+
+def _folder_set(folder: Path) -> dict[str, Any]:
+    """The --set values FOLDER's runs were given ({} for a folder made without them)."""
+    path = folder / SET_FILE
+    if not path.is_file():
+        return {}
+    try:
+        held = json.loads(path.read_text())["set"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"--resume {folder}: its {SET_FILE} cannot be read ({exc}); it is not one avsim wrote: "
+                          "remove it if the folder was made without --set") from None
+    if not isinstance(held, dict):
+        raise ConfigError(f"--resume {folder}: its {SET_FILE} is not one avsim wrote (no table of keys under 'set'); "
+                          "remove it if the folder was made without --set")
+    return held
+
+
 def resumable_records(folder: Path) -> list[dict]:
     """The records of the reproduction in `folder`, to finish it; a one-line ConfigError when
     `folder` is not one (no runs.jsonl), or its runs.jsonl is not avsim's or has a corrupt line."""
@@ -247,12 +297,17 @@ def resumable_records(folder: Path) -> list[dict]:
 
 def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dict], *, selection: str,
                     workers: int | None, progress: bool, backend: str, address: str | None, started: float,
-                    started_at: dt.datetime, batch: int, rrd: str, mcap: str, resumed: bool) -> Path:
+                    started_at: dt.datetime, batch: int, rrd: str, mcap: str, resumed: bool,
+                    overrides: Mapping[str, Any]) -> Path:
     from avsim.experiments.reproduce_report import write_report
 
     history = manifest_history(out / "manifest.json") if resumed else []
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
+    if overrides:
+        write_json_atomic(out / SET_FILE, {"set": flat_items(overrides)})
+    else:
+        (out / SET_FILE).unlink(missing_ok=True)  # a resume with --yes and no --set: the runs to come have none
     plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     nodes = cluster_nodes(backend, address)
     # Runs are matched by name as well as config: two experiment files may share a config.

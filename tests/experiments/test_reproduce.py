@@ -200,6 +200,50 @@ def test_a_resume_under_another_render_setting_is_refused_before_any_run(results
     check_resumed_setting(stopped, load_study([table3, fig3], setting="textured"), existing, yes=True)
 
 
+def test_a_set_runs_every_cell_with_the_value_and_a_resume_must_give_the_same_set(tmp_path, capsys):
+    table3 = tmp_path / "table3_stop_positions.toml"
+    table3.write_text(TINY_TABLE3)
+    base = ["reproduce", "--experiments", str(table3), "--quick", "--workers", "1", "--no-progress", "--rrd", "none"]
+
+    assert cli.main([*base, "--out", str(tmp_path / "results"), "--set", "scenario.start_dist_m=45"]) == 0
+    (folder,) = (tmp_path / "results").iterdir()
+    records = read_records(folder / "runs.jsonl")
+    assert len(records) == 3 and {r["result"]["config"]["scenario"]["start_dist_m"] for r in records} == {45.0}
+    assert json.loads((folder / "set.json").read_text()) == {"set": {"scenario.start_dist_m": 45}}
+    assert "--set scenario.start_dist_m=45" in json.loads((folder / "manifest.json").read_text())["command"]
+    assert "(with --set scenario.start_dist_m=45)" in (folder / "report.md").read_text()
+    capsys.readouterr()
+
+    # Without the --set (or with another) every run would run again into the folder: refused, the folder untouched.
+    before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    for other in ([], ["--set", "scenario.start_dist_m=40"]):
+        assert cli.main([*base, "--resume", str(folder), *other]) == 2
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and "its runs were given --set scenario.start_dist_m=45" in err, err
+        assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+    # The same --set resumes it, and every run is already there.
+    assert cli.main([*base, "--resume", str(folder), "--set", "scenario.start_dist_m=45"]) == 0
+    assert json.loads((folder / "manifest.json").read_text())["ran"] == 0
+
+
+@pytest.mark.parametrize("items, expected", [
+    (["policy.name=baseline"], "its cells differ in policy.name"),
+    (["scenario.seed=2"], "--set scenario.seed"),
+    (["policy.nothing=1"], "unknown config key 'policy.nothing'"),
+    (["scenario.materials=textured"], "--setting sets that key too"),
+])
+def test_a_bad_set_fails_in_one_line_and_writes_nothing(tmp_path, capsys, items, expected):
+    experiment = tmp_path / "table3_stop_positions.toml"
+    experiment.write_text(TINY_TABLE3)
+    before = sorted(tmp_path.rglob("*"))
+    argv = [flag for item in items for flag in ("--set", item)]
+    code = cli.main(["reproduce", "--experiments", str(experiment), "--out", str(tmp_path / "results"),
+                     "--setting", "textured", *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and expected in err, err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
 def test_quick_keeps_one_seed_per_cell(tmp_path):
     experiment = tmp_path / "table3_stop_positions.toml"
     experiment.write_text(TINY_TABLE3)
