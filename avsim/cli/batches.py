@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG, add_setting_flag
+from avsim.cli.flags import BATCH_FLAG, SEEDS_FLAG, WORKERS_FLAG, add_set_flag, add_setting_flag
 from avsim.cli.overrides import parse_set
 from avsim.errors import ConfigError
 from avsim.cli.recording_modes import add_recording_modes
@@ -47,7 +47,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from avsim.experiments.sweep import load_sweep, run_sweep
 
     # Checks the size, then every grid value, before anything runs.
-    sweep = sweep_under_setting(load_sweep(args.file, yes=args.yes), SETTINGS[args.setting])
+    sweep = sweep_under_setting(load_sweep(args.file, yes=args.yes, overrides=parse_set(args.set)), SETTINGS[args.setting])
     out = run_sweep(sweep, args.out, workers=args.workers, resume=args.resume, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, rrd=args.rrd_mode, mcap=args.mcap_mode)
     print((out / "summary.md").read_text())
@@ -62,8 +62,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     from avsim.experiments.render_setting import board_under_setting
 
     # Checks the plan's size, then every run, before anything runs or is written.
-    board = board_under_setting(load_leaderboard(args.file or DEFAULT_FILE, quick=args.quick, yes=args.yes),
-                                SETTINGS[args.setting])
+    board = board_under_setting(load_leaderboard(args.file or DEFAULT_FILE, quick=args.quick, yes=args.yes,
+                                                 overrides=parse_set(args.set)), SETTINGS[args.setting])
     out = run_leaderboard(board, args.out, quick=args.quick, workers=args.workers, resume=args.resume,
                           progress=not args.no_progress, backend=args.backend, address=args.address, batch=args.batch,
                           rrd=args.rrd_mode, mcap=args.mcap_mode)
@@ -105,10 +105,7 @@ def add_commands(sub) -> None:
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
     add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
-    rep.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="give every run this config value, as if it stood in each file's [defaults], e.g. --set "
-                          "policy.conf_threshold=0.55 (repeatable); a key on which a file's cells differ, or that its "
-                          "[vary] draws, is refused")
+    add_set_flag(rep, "every run", "a key on which a file's cells differ, or that its [vary] draws, is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--yes", action="store_true",
                      help="run more than 10,000 runs, add experiment files to a --resume folder, or resume one under "
@@ -127,6 +124,7 @@ def add_commands(sub) -> None:
     swp.add_argument("--resume", action="store_true",
                      help="keep the ok runs already in OUT/results.jsonl and run only the others")
     add_setting_flag(swp, "every run of the grid", "a file whose [defaults] or [grid] sets one of its keys is refused")
+    add_set_flag(swp, "every run of the grid", "a [grid] key is refused")
     swp.add_argument("--no-progress", action="store_true", help="no progress bar")
     swp.add_argument("--yes", action="store_true", help="run a grid of more than 10,000 runs (refused without it)")
     add_recording_modes(swp)
@@ -143,6 +141,8 @@ def add_commands(sub) -> None:
     board.add_argument("--resume", action="store_true", help="keep the ok runs already in OUT/results.jsonl and run the rest")
     add_setting_flag(board, "every run of the board", "a file that sets one of its keys (in [defaults], [vary], a defence, "
                                                        "a condition or an availability scenario) is refused")
+    add_set_flag(board, "every run of the board", "a key a defence, condition, place, availability scenario or [vary] "
+                                                  "sets is refused")
     board.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_recording_modes(board)
     board.set_defaults(func=_cmd_leaderboard)

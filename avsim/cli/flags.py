@@ -82,3 +82,12 @@ def add_setting_flag(parser: argparse.ArgumentParser, what: str, refused: str) -
                         help=f"render {what} under one of `avsim realism`'s settings, as if its keys stood in the file's "
                              f"[defaults]: {', '.join(SETTINGS)} (default {BASELINE}, the default renders; "
                              f"docs/realism.md); {refused}")
+
+
+def add_set_flag(parser: argparse.ArgumentParser, what: str, refused: str) -> None:
+    """--set KEY=VALUE (repeatable) on a batch command: one config value under `what`
+    (`avsim.experiments.set_overrides`); `refused` says which keys it may not be given."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help=f"give {what} this config value, as if it stood in the file's [defaults], e.g. --set "
+                             f"policy.conf_threshold=0.55 (repeatable; docs/reproducing.md); {refused}; a --resume "
+                             "must give the same values")

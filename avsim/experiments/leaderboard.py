@@ -44,6 +44,7 @@ machinery (`resumable`: a pool or Ray, one fsynced line per run, `--resume`), th
     manifest.json      command, workers, wall time, runs, failures, versions
     leaderboard.md     the tables (`avsim.experiments.leaderboard_report`)
     leaderboard.png    safety against availability, one point per defence, the Pareto front marked
+    set.json           the --set values every run was given, when there were any (`avsim.experiments.set_overrides`)
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ from avsim.errors import ConfigError
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import MAX_RUNS, check_plan_size
 from avsim.experiments.run_task import RunSpec
+from avsim.experiments.set_overrides import checked_set, flat_items, refuse_layered, set_title
 from avsim.experiments.spec import (as_table, check_networks, check_renderer, check_run_names, config_at_seed, deep_merge, located, parse_vary,
                                    read_run_file, reject_seed)
 from avsim.realism.settings import BASELINE
@@ -151,6 +153,20 @@ class Leaderboard:
     availability: tuple[Availability, ...]
     defaults_keys: frozenset[str] = frozenset()  # the dotted keys the file's [defaults] sets
     setting: str = BASELINE  # the render setting it runs under (`avsim leaderboard --setting`)
+    set_items: tuple[tuple[str, Any], ...] = ()  # the --set values in its base config: (dotted key, value), sorted
+
+    def layers(self) -> list[tuple[str, frozenset[str]]]:
+        """Where the file and its --set values set keys over the base config (where, dotted keys): none of
+        them may a --setting set too, and a --set none but [defaults]'s."""
+        layers = [("[defaults]", self.defaults_keys), ("[vary]", frozenset(key for key, _, _ in self.vary))]
+        layers += [(f'condition "{name}"', dotted_keys(c.overrides)) for name, c in self.conditions.items()]
+        for defence in self.defences:
+            layers += [(f'defence "{defence.name}"', dotted_keys(defence.overrides)),
+                       (f'defence "{defence.name}"\'s adaptive condition', dotted_keys(defence.adaptive.overrides))]
+        layers += [(f'availability scenario "{a.name}"', dotted_keys(a.overrides)) for a in self.availability]
+        if self.places:
+            layers.append(("[[places]]", dotted_keys(place_overrides(self.places[0]))))
+        return layers + [("--set", frozenset(key for key, _ in self.set_items))]
 
     @property
     def name(self) -> str:
@@ -231,17 +247,24 @@ def place_overrides(place: Place) -> dict[str, Any]:
 
 # ---- loading ---------------------------------------------------------------------------------
 
-def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, yes: bool = False) -> Leaderboard:
+def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, yes: bool = False,
+                     overrides: Mapping[str, Any] | None = None) -> Leaderboard:
     """Read and check a leaderboard file, every run of it (module docstring).
 
     quick, yes: the plan to be run (its quick seeds or all) may exceed `plan_size.RUNS_WITHOUT_YES`
-    runs only with `yes`; its size is checked before any run is built."""
+    runs only with `yes`; its size is checked before any run is built. overrides: `--set` values (nested),
+    over [defaults] under every run; one that a defence, condition, place, availability scenario or [vary]
+    sets is refused (`avsim.experiments.set_overrides`)."""
     path = Path(path)
+    overrides = overrides or {}
+    keys_given = checked_set(overrides)
     raw, title, _ = read_run_file(path, "leaderboard", TOP_LEVEL_KEYS, 1)
     with located(path, "[defaults]"):
         defaults = as_table(raw.get("defaults", {}), "defaults")
         reject_seed(defaults)
         base = with_overrides(SimConfig(), defaults)
+    with located(path, "--set"):
+        base = with_overrides(base, overrides)
     with located(path, "[vary]"):
         vary = parse_vary(raw.get("vary", {}))
     with located(path, "[conditions]"):
@@ -253,10 +276,12 @@ def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, ye
     availability = tuple(_parse_availability(path, index, item, {d.name for d in defences})
                          for index, item in enumerate(raw.get("availability", [])))
     _unique(path, "availability", [a.name for a in availability])
-    board = Leaderboard(path, title, base, vary, conditions, defences, places, availability, dotted_keys(defaults))
+    board = Leaderboard(path, set_title(title, overrides) if overrides else title, base, vary, conditions, defences,
+                        places, availability, dotted_keys(defaults), set_items=tuple(flat_items(overrides).items()))
+    refuse_layered(path, keys_given, [(where, keys) for where, keys in board.layers() if where not in ("[defaults]", "--set")])
     check_plan_size(board.size(quick), f"{path}: {len(defences)} defences", yes=yes)
     _check_runs(board)
-    _check_keys_read(board, defaults)
+    _check_keys_read(board, defaults, keys_given)
     return board
 
 
@@ -365,12 +390,14 @@ def _unique(path: Path, key: str, names: list[str]) -> None:
         raise ConfigError(f"{path}: [[{key}]] names '{repeated[0]}' twice; each needs its own")
 
 
-def _check_keys_read(board: Leaderboard, defaults: Mapping[str, Any]) -> None:
-    """A defence's policy and perception keys are read by its runs; those of [defaults] and [vary]
-    by some run of the board (`avsim.config_owners`)."""
+def _check_keys_read(board: Leaderboard, defaults: Mapping[str, Any], keys_given: frozenset[str]) -> None:
+    """A defence's policy and perception keys are read by its runs; those of [defaults] and [vary], and the
+    --set keys (`keys_given`), by some run of the board (`avsim.config_owners`)."""
     runs = board.runs(first_seed_only=True)
     with located(board.path, "[defaults] and [vary]"):
         check_read_by_some((run.config for run in runs), set_keys(defaults) | {key for key, _, _ in board.vary})
+    with located(board.path, "--set"):
+        check_read_by_some((run.config for run in runs), keys_given)
     for defence in board.defences:
         with located(board.path, f'defence "{defence.name}"'):
             for run in runs:

@@ -51,21 +51,14 @@ def board_under_setting(board: Leaderboard, setting: RenderSetting) -> Leaderboa
     condition, place and availability scenario), its title naming the setting; the board itself for
     `baseline`. ConfigError, naming the key and where the file sets it, where the file sets a key the
     setting sets."""
-    layers = [("[defaults]", board.defaults_keys), ("[vary]", {key for key, _, _ in board.vary})]
-    layers += [(f'condition "{name}"', dotted_keys(c.overrides)) for name, c in board.conditions.items()]
-    for defence in board.defences:
-        layers += [(f'defence "{defence.name}"', dotted_keys(defence.overrides)),
-                   (f'defence "{defence.name}"\'s adaptive condition', dotted_keys(defence.adaptive.overrides))]
-    layers += [(f'availability scenario "{a.name}"', dotted_keys(a.overrides)) for a in board.availability]
-    return _base_under_setting(board, layers, setting)
+    return _base_under_setting(board, board.layers(), setting)
 
 
 def sweep_under_setting(sweep: Sweep, setting: RenderSetting) -> Sweep:
     """`sweep` with `setting`'s overrides under every grid point (in its base config), its title naming
     the setting; the sweep itself for `baseline`. ConfigError where its [defaults] or [grid] sets a key
     the setting sets."""
-    return _base_under_setting(sweep, [("[defaults]", sweep.defaults_keys), ("[grid]", {key for key, _ in sweep.grid})],
-                               setting)
+    return _base_under_setting(sweep, sweep.layers(), setting)
 
 
 def _base_under_setting(plan_file: Leaderboard | Sweep, layers: list[tuple[str, Iterable[str]]],

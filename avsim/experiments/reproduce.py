@@ -30,7 +30,6 @@ import dataclasses
 import datetime as dt
 import os
 import shutil
-import json
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -49,7 +48,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
-from avsim.experiments.set_overrides import experiment_with_set, flags_of_items, flat_items, set_flags
+from avsim.experiments.set_overrides import check_resumed_set, experiment_with_set, flat_items, record_set, set_flags
 from avsim.experiments.spec import Experiment, check_networks, check_renderer, check_run_names, load_experiment, located
 from avsim.config_owners import dotted_keys
 from avsim.metrics import write_json_atomic
@@ -182,7 +181,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         existing = resumable_records(out)
         check_resumed_selection(out, experiments, yes=yes)
         check_resumed_setting(out, experiments, existing, yes=yes)
-        check_resumed_set(out, overrides, yes=yes)
+        check_resumed_set(out, flat_items(overrides), allowed=yes, other_fix="add --yes to run the others into it")
     else:
         out = _fresh_dir(Path(results_root), started_at.strftime("%Y-%m-%dT%H-%M-%S"))
         existing = []
@@ -252,39 +251,6 @@ def check_resumed_setting(folder: Path, experiments: list[Experiment], existing:
         return
 
 
-# The file in a reproduction's folder that holds the --set values its runs were given, written before the first
-# run: a resume without them (or with others) would run every run again into the folder, beside the first ones.
-SET_FILE = "set.json"
-
-
-def check_resumed_set(folder: Path, overrides: Mapping[str, Any], *, yes: bool) -> None:
-    """A one-line ConfigError when FOLDER's runs were given other --set values than this command's, unless `yes`."""
-    made_with = _folder_set(folder)
-    asked = json.loads(json.dumps(flat_items(overrides)))  # as JSON holds them: a list for a tuple
-    if made_with != asked and not yes:
-        made = flags_of_items(made_with) or "no --set"
-        this = set_flags(overrides) or "no --set"
-        raise ConfigError(f"--resume {folder}: its runs were given {made} and this command {this}, so every run "
-                          f"would run again into it; give the --set that made the folder (its {SET_FILE} and the "
-                          "command Ctrl-C printed name it), or add --yes to run the others into it")
-
-
-def _folder_set(folder: Path) -> dict[str, Any]:
-    """The --set values FOLDER's runs were given ({} for a folder made without them)."""
-    path = folder / SET_FILE
-    if not path.is_file():
-        return {}
-    try:
-        held = json.loads(path.read_text())["set"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ConfigError(f"--resume {folder}: its {SET_FILE} cannot be read ({exc}); it is not one avsim wrote: "
-                          "remove it if the folder was made without --set") from None
-    if not isinstance(held, dict):
-        raise ConfigError(f"--resume {folder}: its {SET_FILE} is not one avsim wrote (no table of keys under 'set'); "
-                          "remove it if the folder was made without --set")
-    return held
-
-
 def resumable_records(folder: Path) -> list[dict]:
     """The records of the reproduction in `folder`, to finish it; a one-line ConfigError when
     `folder` is not one (no runs.jsonl), or its runs.jsonl is not avsim's or has a corrupt line."""
@@ -304,10 +270,7 @@ def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dic
     history = manifest_history(out / "manifest.json") if resumed else []
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
-    if overrides:
-        write_json_atomic(out / SET_FILE, {"set": flat_items(overrides)})
-    else:
-        (out / SET_FILE).unlink(missing_ok=True)  # a resume with --yes and no --set: the runs to come have none
+    record_set(out, flat_items(overrides))
     plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     nodes = cluster_nodes(backend, address)
     # Runs are matched by name as well as config: two experiment files may share a config.

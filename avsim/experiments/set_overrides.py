@@ -1,19 +1,24 @@
-"""`avsim reproduce --set KEY=VALUE`: one config value given to every run of the experiment files.
+"""`--set KEY=VALUE` on `avsim reproduce`, `sweep` and `leaderboard`: one config value given to every run of a file.
 
 A threshold's sensitivity, another network on the same cells, another road: each is one key changed over a
 whole file, e.g.
 
     avsim reproduce --experiments experiments/coco_detector_town10.toml --set policy.conf_threshold=0.55
+    avsim leaderboard --quick --set perception.kind=nanodet
 
-A --set key replaces the value the file gives all of its cells (from [defaults], or the same in each cell), so
-each run's config is what a copy of the file with the key in [defaults] gives, and what
-`avsim run --config FILE --cell C --seed K --set KEY=VALUE` gives the same run alone. What is refused, in one line
-before anything runs:
-- a key on which the file's cells differ (Table I's `policy.name`): the cells would run alike under names that
-  say they differ; run one cell with `avsim run --set`, or edit a copy of the file;
-- a key [vary] draws per seed: every draw would be replaced;
-- a key no cell reads (a side-camera key over front-camera cells), and `scenario.seed`, which a batch sets per run;
+A --set key replaces the value the file's [defaults] gives (or, in an experiment file, the value all of its cells
+share), so each run's config is what a copy of the file with the key in [defaults] gives, and what
+`avsim run --config FILE --cell C --seed K --set KEY=VALUE` gives one experiment run alone. What is refused, in one
+line before anything runs:
+- a key on which an experiment file's cells differ (Table I's `policy.name`): the cells would run alike under
+  names that say they differ; run one cell with `avsim run --set`, or edit a copy of the file;
+- a key a sweep's [grid], a leaderboard's defence, condition, place or availability scenario, or any file's
+  [vary] sets: those runs would take the file's value over the --set, or every draw would be replaced;
+- a key no run reads (a side-camera key over front-camera cells), and `scenario.seed`, which a batch sets per run;
 - a key the command's --setting sets: the --set would quietly undo part of the setting.
+
+The results folder keeps the values in `set.json` (`SET_FILE`), so that a `--resume` with other values, which
+would run every run again into the folder beside the first ones, is refused.
 """
 
 from __future__ import annotations
@@ -23,12 +28,14 @@ import json
 import re
 import shlex
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
-from avsim.config import with_overrides
+from avsim.config import SimConfig, with_overrides
 from avsim.config_owners import check_read_by_some, dotted_keys
 from avsim.errors import ConfigError
 from avsim.experiments.spec import Cell, Experiment, located
+from avsim.metrics import write_json_atomic
 
 # A string value that reads back as itself when written bare after `KEY=` (`avsim.cli.overrides.parse_set`
 # reads a bare word as a string, but `true` or `inf` as TOML values).
@@ -61,28 +68,49 @@ def _as_typed(value: Any) -> str:
     return json.dumps(list(value) if isinstance(value, tuple) else value)
 
 
+def checked_set(overrides: Mapping[str, Any], setting_keys: frozenset[str] = frozenset()) -> frozenset[str]:
+    """The dotted keys of the nested `--set` `overrides`, after the refusals every file shares: `scenario.seed`,
+    an unknown key or a mistyped value (checked against the defaults), a key the command's --setting sets
+    (`setting_keys`). One-line ConfigErrors."""
+    keys = dotted_keys(overrides)
+    if "scenario.seed" in keys:
+        raise ConfigError("--set scenario.seed: a batch gives each run its seed (0 .. seeds - 1); give the file more "
+                          "seeds (`avsim reproduce --seeds N`), or replay one run with `avsim run ... --seed K`")
+    try:  # every key and value, before any is looked up in a file's runs
+        with_overrides(SimConfig(), overrides)
+    except ConfigError as exc:
+        raise ConfigError(f"--set: {exc}") from None
+    clash = keys & setting_keys
+    if clash:
+        raise ConfigError(f"--set {sorted(clash)[0]}: the command's --setting sets that key too; leave out one of them")
+    return keys
+
+
+def refuse_layered(path: Path, keys: frozenset[str], layers: list[tuple[str, frozenset[str]]]) -> None:
+    """A one-line ConfigError where one of `layers` ((where in the file, the dotted keys it sets), e.g.
+    ("[grid]", {"scenario.speed_kmh"})) sets one of the --set `keys`: its runs would take the file's value."""
+    for where, layer_keys in layers:
+        clash = keys & layer_keys
+        if clash:
+            key = sorted(clash)[0]
+            raise ConfigError(f"{path}: {where} sets {key} itself, and its runs would take that over --set {key}; "
+                              "leave the key to the file, or edit a copy of it")
+
+
+def set_title(title: str, overrides: Mapping[str, Any]) -> str:
+    """A file's title with the --set values its runs were given, for the reports' headings."""
+    return f"{title} (with {set_flags(overrides)})"
+
+
 def experiment_with_set(experiment: Experiment, overrides: Mapping[str, Any], setting_keys: frozenset[str]) -> Experiment:
     """`experiment` with the `--set` `overrides` in every cell and its title naming them; the experiment itself
     for no overrides. setting_keys: the dotted keys the command's render setting sets (refused here). A one-line
     ConfigError, naming the file and the key, for each refusal in the module docstring."""
     if not overrides:
         return experiment
-    keys = dotted_keys(overrides)  # empty for `--set policy=3`, which with_overrides refuses below
+    keys = checked_set(overrides, setting_keys)
     path = experiment.path
-    if "scenario.seed" in keys:
-        raise ConfigError("--set scenario.seed: a batch gives each run its seed (0 .. seeds-1); give --seeds N for "
-                          "more of them, or replay one run with `avsim run --config FILE --cell NAME --seed K`")
-    try:  # every key and value, before any is looked up in the cells
-        configs = [with_overrides(cell.config, overrides) for cell in experiment.cells]
-    except ConfigError as exc:
-        raise ConfigError(f"--set: {exc}") from None
-    clash = keys & setting_keys
-    if clash:
-        raise ConfigError(f"--set {sorted(clash)[0]}: the command's --setting sets that key too; leave out one of them")
-    drawn = keys & {key for key, _, _ in experiment.vary}
-    if drawn:
-        raise ConfigError(f"{path}: its [vary] draws {sorted(drawn)[0]} per seed, and --set would replace every draw; "
-                          "edit a copy of the file's [vary] instead")
+    refuse_layered(path, keys, [("its [vary]", frozenset(key for key, _, _ in experiment.vary))])
     for key in sorted(keys):
         section, name = key.split(".")
         values = {cell.name: getattr(getattr(cell.config, section), name) for cell in experiment.cells}
@@ -91,10 +119,10 @@ def experiment_with_set(experiment: Experiment, overrides: Mapping[str, Any], se
             raise ConfigError(f"{path}: its cells differ in {key} (\"{first}\": {a!r}, \"{second}\": {b!r}), so --set "
                               f"would run them alike under names that say they differ; run one cell with `avsim run "
                               f"--config {path} --cell NAME --set {key}=...`, or edit a copy of the file")
-    cells = [Cell(cell.name, config, cell.keys_set | keys) for cell, config in zip(experiment.cells, configs)]
     with located(path, "--set"):
+        cells = [Cell(cell.name, with_overrides(cell.config, overrides), cell.keys_set | keys) for cell in experiment.cells]
         check_read_by_some((cell.config for cell in cells), keys, runs="cell")
-    return dataclasses.replace(experiment, title=f"{experiment.title} (with {set_flags(overrides)})", cells=tuple(cells))
+    return dataclasses.replace(experiment, title=set_title(experiment.title, overrides), cells=tuple(cells))
 
 
 def _two_differing(values: dict[str, Any]) -> tuple[tuple[str, Any], tuple[str, Any]]:
@@ -102,3 +130,45 @@ def _two_differing(values: dict[str, Any]) -> tuple[tuple[str, Any], tuple[str, 
     items = list(values.items())
     first = items[0]
     return first, next(item for item in items[1:] if repr(item[1]) != repr(first[1]))
+
+
+# The file in a results folder that holds the --set values its runs were given, written before the first run:
+# a resume without them (or with others) would run every run again into the folder, beside the first ones.
+SET_FILE = "set.json"
+
+
+def record_set(folder: Path, items: Mapping[str, Any]) -> None:
+    """Write {dotted key: value} (`flat_items`) into FOLDER's `SET_FILE`, or remove it for none."""
+    if items:
+        write_json_atomic(folder / SET_FILE, {"set": dict(items)})
+    else:
+        (folder / SET_FILE).unlink(missing_ok=True)  # a resume allowed without --set: the runs to come have none
+
+
+def check_resumed_set(folder: Path, items: Mapping[str, Any], *, allowed: bool, other_fix: str) -> None:
+    """A one-line ConfigError when FOLDER's runs were given other --set values than `items` ({dotted key: value}),
+    unless `allowed`; other_fix: the message's last way out ("add --yes to run the others into it")."""
+    made_with = _folder_set(folder)
+    asked = json.loads(json.dumps(dict(items)))  # as JSON holds them: a list for a tuple
+    if made_with != asked and not allowed:
+        made = flags_of_items(made_with) or "no --set"
+        this = flags_of_items(items) or "no --set"
+        raise ConfigError(f"--resume {folder}: its runs were given {made} and this command {this}, so every run "
+                          f"would run again into it; give the --set that made the folder (its {SET_FILE} and the "
+                          f"command Ctrl-C printed name it), or {other_fix}")
+
+
+def _folder_set(folder: Path) -> dict[str, Any]:
+    """The --set values FOLDER's runs were given ({} for a folder made without them)."""
+    path = folder / SET_FILE
+    if not path.is_file():
+        return {}
+    try:
+        held = json.loads(path.read_text())["set"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"--resume {folder}: its {SET_FILE} cannot be read ({exc}); it is not one avsim wrote: "
+                          "remove it if the folder was made without --set") from None
+    if not isinstance(held, dict):
+        raise ConfigError(f"--resume {folder}: its {SET_FILE} is not one avsim wrote (no table of keys under 'set'); "
+                          "remove it if the folder was made without --set")
+    return held

@@ -32,6 +32,7 @@ It writes into one folder:
                       grid values, dotted key -> value; in grid order once the sweep is over
     manifest.json     command, backend, workers, wall time, runs, failures, versions
     summary.md        the safety map and every run's outcome (`avsim.experiments.sweep_report`)
+    set.json          the --set values every run was given, when there were any (`avsim.experiments.set_overrides`)
     safety_map.png    the figure
 
 With `resume`, runs whose config hash already has an `ok` record in results.jsonl are not
@@ -68,6 +69,8 @@ from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
+from avsim.experiments.set_overrides import (check_resumed_set, checked_set, flags_of_items, flat_items, record_set,
+                                             refuse_layered, set_title)
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_networks, check_renderer, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
@@ -111,6 +114,12 @@ class Sweep:
     grid: tuple[tuple[str, tuple[Scalar, ...]], ...]
     defaults_keys: frozenset[str] = frozenset()  # the dotted keys the file's [defaults] sets
     setting: str = BASELINE  # the render setting it runs under (`avsim sweep --setting`)
+    set_items: tuple[tuple[str, Any], ...] = ()  # the --set values in its base config: (dotted key, value), sorted
+
+    def layers(self) -> list[tuple[str, frozenset[str]]]:
+        """Where the file and its --set values set keys (where, dotted keys): none of them may a --setting set too."""
+        return [("[defaults]", self.defaults_keys), ("[grid]", frozenset(key for key, _ in self.grid)),
+                ("--set", frozenset(key for key, _ in self.set_items))]
 
     @property
     def name(self) -> str:
@@ -173,12 +182,15 @@ def point_label(point: Mapping[str, Scalar]) -> str:
 
 # ---- loading ---------------------------------------------------------------------------------
 
-def load_sweep(path: str | os.PathLike, *, yes: bool = False) -> Sweep:
+def load_sweep(path: str | os.PathLike, *, yes: bool = False, overrides: Mapping[str, Any] | None = None) -> Sweep:
     """Read and check a sweep file; see the module docstring for its format.
 
     yes: allow more than `plan_size.RUNS_WITHOUT_YES` runs (the user's --yes); the size is
-    checked before any combination is built."""
+    checked before any combination is built. overrides: `--set` values (nested), over [defaults] in every
+    run; one a [grid] key sets is refused (`avsim.experiments.set_overrides`)."""
     path = Path(path)
+    overrides = overrides or {}
+    keys_given = checked_set(overrides)
     raw, title, seeds = read_run_file(path, "sweep", TOP_LEVEL_KEYS, DEFAULT_SEEDS)
 
     with located(path, "[defaults]"):
@@ -186,24 +198,29 @@ def load_sweep(path: str | os.PathLike, *, yes: bool = False) -> Sweep:
         reject_seed(defaults)
         base = with_overrides(SimConfig(), defaults)
         check_run_names(base)
+    with located(path, "--set"):
+        base = with_overrides(base, overrides)
+        check_run_names(base)
     with located(path, "[grid]"):
         grid = _parse_grid(raw.get("grid"), base)
-    sweep = Sweep(path=path, title=title, seeds=seeds, base=base, grid=grid, defaults_keys=dotted_keys(defaults))
+    refuse_layered(path, keys_given, [("its [grid]", frozenset(key for key, _ in grid))])
+    sweep = Sweep(path=path, title=set_title(title, overrides) if overrides else title, seeds=seeds, base=base,
+                  grid=grid, defaults_keys=dotted_keys(defaults), set_items=tuple(flat_items(overrides).items()))
     check_plan_size(sweep.size, f"{path}: {sweep.size // seeds:,} grid points x {seeds:,} seeds", yes=yes)
     # Each value is valid alone; check every combination too (limits that tie two keys together).
     configs = []
     for point in sweep.iter_points():
         with located(path, f"[grid] point {point_label(point)}"):
             configs.append((point_label(point), sweep.config_at(point, 0)))
-    _check_keys_read(path, defaults, sweep.grid, configs)
+    _check_keys_read(path, defaults, sweep.grid, configs, keys_given)
     return sweep
 
 
 def _check_keys_read(path: Path, defaults: Mapping[str, Any], grid: tuple[tuple[str, tuple[Scalar, ...]], ...],
-                     configs: list[tuple[str, SimConfig]]) -> None:
-    """Every policy and perception key of [defaults] and every grid axis is read by some run of the
-    grid, and no two grid points make the same run (`avsim.config_owners`)."""
-    for where, keys in (("[defaults]", set_keys(defaults)), ("[grid]", {key for key, _ in grid})):
+                     configs: list[tuple[str, SimConfig]], keys_given: frozenset[str]) -> None:
+    """Every policy and perception key of [defaults], every --set key (`keys_given`) and every grid axis is
+    read by some run of the grid, and no two grid points make the same run (`avsim.config_owners`)."""
+    for where, keys in (("[defaults]", set_keys(defaults)), ("--set", keys_given), ("[grid]", {key for key, _ in grid})):
         with located(path, where):
             check_read_by_some((config for _, config in configs), keys, runs="run of the grid")
     same = identical_runs(configs)
@@ -288,6 +305,8 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
+    if resume:
+        check_resumed_set(out, dict(sweep.set_items), allowed=False, other_fix="give another --out for these runs")
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
         return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
@@ -311,18 +330,21 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     out.mkdir(parents=True, exist_ok=True)
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
+    record_set(out, dict(sweep.set_items))
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
-    setting = f" --setting {sweep.setting}" if sweep.setting != BASELINE else ""
+    # --setting and --set, which the resume command and the manifest's command repeat.
+    file_flags = f" --setting {sweep.setting}" if sweep.setting != BASELINE else ""
+    file_flags += f" {flags_of_items(dict(sweep.set_items))}" if sweep.set_items else ""
     nodes = cluster_nodes(backend, address)
     records, ran = run_resumable(plan, results_path, existing,
-                                 resume_command=f"avsim sweep {sweep.path} --out {out}{setting}{recording_flags(rrd, mcap)} --resume",
+                                 resume_command=f"avsim sweep {sweep.path} --out {out}{file_flags}{recording_flags(rrd, mcap)} --resume",
                                  workers=workers, progress=progress, description=sweep.name, backend=backend,
                                  address=address, decorate=lambda record: with_point(record, point_of[record["cell"]]),
                                  batch=batch)
     wall_s = time.perf_counter() - started
     options = [f"--workers {workers}" if workers is not None else "", f"--batch {batch}" if batch != DEFAULT_BATCH else "",
                f"--backend {backend}" if backend != "local" else "",
-               f"--address {address}" if address is not None else "", setting.strip(), recording_flags(rrd, mcap).strip(),
+               f"--address {address}" if address is not None else "", file_flags.strip(), recording_flags(rrd, mcap).strip(),
                "--resume" if resume else ""]
     manifest = {
         "command": " ".join([f"avsim sweep {sweep.path} --out {out}", *filter(None, options)]),

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from avsim.cli import main
+from avsim.cli.overrides import parse_set
 from avsim.errors import ConfigError
 from avsim.experiments.leaderboard import AVAILABILITY, DEFAULT_FILE, SAFETY, load_leaderboard, unique_specs
 from avsim.experiments.leaderboard_run import run_leaderboard
@@ -200,6 +201,40 @@ SHORT_APPROACH_M = 60
 
 @pytest.mark.slow
 @pytest.mark.both_cores  # two worker processes
+def test_a_resume_with_other_set_values_than_the_folders_is_refused_before_anything_runs(tmp_path, capsys):
+    path = write(tmp_path, TINY)
+    out = tmp_path / "board"
+    out.mkdir()
+    (out / "set.json").write_text('{"set": {"scenario.start_dist_m": 60}}')
+    before = sorted(out.rglob("*"))
+    assert main(["leaderboard", str(path), "--out", str(out), "--resume", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "its runs were given --set scenario.start_dist_m=60 and this command no --set" in err
+    assert sorted(out.rglob("*")) == before
+
+
+def test_a_leaderboard_under_a_set_gives_every_run_the_value(tmp_path):
+    path = write(tmp_path, TINY)
+    board = load_leaderboard(path, overrides=parse_set(["scenario.start_dist_m=60"]))
+    assert {run.config.scenario.start_dist_m for run in board.runs()} == {60.0}
+    assert board.set_items == (("scenario.start_dist_m", 60),) and "(with --set scenario.start_dist_m=60)" in board.title
+
+
+@pytest.mark.parametrize("item, where", [
+    ("scenario.sign=clean", 'condition "clean"'),
+    ("policy.name=adjusted", 'defence "baseline"'),
+    ("scenario.town=town10", "[[places]]"),
+    ("scenario.map_error=none", 'defence "map_prior"\'s adaptive condition'),
+    ("scenario.sun_elevation_deg=50", "[vary]"),
+])
+def test_a_set_a_leaderboards_rows_would_override_is_refused(tmp_path, item, where):
+    path = write(tmp_path, TINY)
+    key = item.split("=")[0]
+    with pytest.raises(ConfigError) as refused:
+        load_leaderboard(path, overrides=parse_set([item]))
+    assert f"{path}: {where} sets {key} itself" in str(refused.value), str(refused.value)
+
+
 def test_the_quick_leaderboard_runs_every_defence(tmp_path, capsys):
     """`avsim leaderboard --quick` on the shipped board: every defence, condition and road of its quick
     subset (Town07 standard, one seed) with the learned detector (and COCO for the ensembles), on a

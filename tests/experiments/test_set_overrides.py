@@ -68,7 +68,7 @@ def test_no_set_leaves_the_experiment_as_it_is(tmp_path):
     (["scenario.seed=3"], "--set scenario.seed: a batch gives each run its seed"),
     (["policy.name=baseline"], 'its cells differ in policy.name ("adjusted": \'adjusted\', "side camera": '
                                "'side_camera')"),
-    (["scenario.sun_elevation_deg=50"], "its [vary] draws scenario.sun_elevation_deg per seed"),
+    (["scenario.sun_elevation_deg=50"], "its [vary] sets scenario.sun_elevation_deg itself"),
     (["policy.no_such_key=1"], "--set: unknown config key 'policy.no_such_key'"),
     (["policy.a_max_mps2=fast"], "--set: "),
     (["policy=3"], "--set: config section 'policy' must be a table of keys"),
@@ -98,3 +98,4 @@ def test_the_set_flags_written_into_a_manifest_read_back_as_the_same_values(over
     flags = shlex.split(set_flags(overrides))
     assert flags[::2] == ["--set"] * len(flat_items(overrides))
     assert parse_set(flags[1::2]) == overrides
+

@@ -9,11 +9,14 @@ from pathlib import Path
 import pytest
 
 from avsim import cli
+from avsim.cli.overrides import parse_set
 from avsim.config import SimConfig
 from avsim.errors import ConfigError
+from avsim.experiments.render_setting import sweep_under_setting
 from avsim.experiments.results_file import read_records
 from avsim.experiments.sweep import load_sweep
 from avsim.experiments.sweep_report import front_measures, ordered_by_strength, run_cell_text, safety_map, sign_strength
+from avsim.realism.settings import SETTINGS
 
 SWEEPS_DIR = Path(__file__).resolve().parents[2] / "experiments" / "sweeps"
 SMOKE = SWEEPS_DIR / "sweep_smoke.toml"
@@ -130,6 +133,36 @@ def test_the_cli_rejects_a_bad_file_with_exit_2_and_writes_nothing(tmp_path, cap
     assert not out.exists()
 
 
+# ---- --set KEY=VALUE over a sweep file (`avsim.experiments.set_overrides`) ---------------------
+def test_a_sweep_under_a_set_is_the_sweep_of_the_file_with_the_key_in_defaults(tmp_path):
+    by_hand = tmp_path / "by_hand.toml"
+    by_hand.write_text(SMOKE.read_text().replace("start_dist_m = 60", "start_dist_m = 45"))
+    with_set = load_sweep(SMOKE, overrides=parse_set(["scenario.start_dist_m=45"]))
+    assert [run.config for run in with_set.runs()] == [run.config for run in load_sweep(by_hand).runs()]
+    assert with_set.set_items == (("scenario.start_dist_m", 45),)
+    assert with_set.title.endswith("(with --set scenario.start_dist_m=45)")
+
+
+@pytest.mark.parametrize("items, expected", [
+    (["scenario.speed_kmh=50"], "its [grid] sets scenario.speed_kmh itself, and its runs would take that over --set"),
+    (["perception.coco_input=upscale"], "--set: perception.coco_input is read only by"),
+    (["scenario.seed=1"], "--set scenario.seed"),
+    (["scenario.town=nowhere"], "--set: "),
+])
+def test_a_set_a_sweeps_grid_would_override_or_no_run_reads_is_refused(items, expected):
+    with pytest.raises(ConfigError) as refused:
+        load_sweep(SMOKE, overrides=parse_set(items))
+    assert expected in str(refused.value) and "\n" not in str(refused.value), str(refused.value)
+
+
+def test_a_set_of_a_key_the_sweeps_setting_sets_is_refused():
+    sweep = load_sweep(SMOKE, overrides=parse_set(["scenario.materials=flat"]))
+    with pytest.raises(ConfigError, match="--set sets scenario.materials, which --setting textured sets too"):
+        sweep_under_setting(sweep, SETTINGS["textured"])
+
+
+
+
 # ---- the smoke sweep, end to end -------------------------------------------------------------
 
 @pytest.fixture(scope="module")
@@ -170,6 +203,25 @@ def test_a_second_sweep_into_the_same_folder_needs_resume_which_reuses_the_ok_ru
     manifest = json.loads((smoke_out / "manifest.json").read_text())
     assert (manifest["ran"], manifest["reused"]) == (0, 4)
     assert (smoke_out / "results.jsonl").read_text() == before
+
+
+def test_a_sweep_with_set_runs_every_point_with_the_value_and_a_resume_must_give_it_again(tmp_path, capsys):
+    out = tmp_path / "smoke_45"
+    base = ["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]
+    assert cli.main([*base, "--set", "scenario.start_dist_m=45"]) == 0
+    records = read_records(out / "results.jsonl")
+    assert [r["result"]["config"]["scenario"]["start_dist_m"] for r in records] == [45.0] * 4
+    assert json.loads((out / "set.json").read_text()) == {"set": {"scenario.start_dist_m": 45}}
+    assert "--set scenario.start_dist_m=45" in json.loads((out / "manifest.json").read_text())["command"]
+    assert "(with --set scenario.start_dist_m=45)" in (out / "summary.md").read_text()
+    capsys.readouterr()
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert cli.main([*base, "--resume"]) == 2  # every run would run again, beside the first ones
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "its runs were given --set scenario.start_dist_m=45" in err, err
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert cli.main([*base, "--resume", "--set", "scenario.start_dist_m=45"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["ran"] == 0
 
 
 def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_again_on_resume(smoke_out, tmp_path,
