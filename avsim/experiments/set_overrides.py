@@ -31,7 +31,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from avsim.config import SimConfig, with_overrides
+from avsim.config import with_overrides
 from avsim.config_owners import check_read_by_some, dotted_keys
 from avsim.errors import ConfigError
 from avsim.experiments.spec import Cell, Experiment, located
@@ -70,16 +70,12 @@ def _as_typed(value: Any) -> str:
 
 def checked_set(overrides: Mapping[str, Any], setting_keys: frozenset[str] = frozenset()) -> frozenset[str]:
     """The dotted keys of the nested `--set` `overrides`, after the refusals every file shares: `scenario.seed`,
-    an unknown key or a mistyped value (checked against the defaults), a key the command's --setting sets
-    (`setting_keys`). One-line ConfigErrors."""
+    a key the command's --setting sets (`setting_keys`). One-line ConfigErrors. (Each key and value is checked
+    where it is applied to the file's configs: a limit that ties two keys, vote_k <= vote_n, depends on them.)"""
     keys = dotted_keys(overrides)
     if "scenario.seed" in keys:
         raise ConfigError("--set scenario.seed: a batch gives each run its seed (0 .. seeds - 1); give the file more "
                           "seeds (`avsim reproduce --seeds N`), or replay one run with `avsim run ... --seed K`")
-    try:  # every key and value, before any is looked up in a file's runs
-        with_overrides(SimConfig(), overrides)
-    except ConfigError as exc:
-        raise ConfigError(f"--set: {exc}") from None
     clash = keys & setting_keys
     if clash:
         raise ConfigError(f"--set {sorted(clash)[0]}: the command's --setting sets that key too; leave out one of them")
@@ -110,6 +106,8 @@ def experiment_with_set(experiment: Experiment, overrides: Mapping[str, Any], se
         return experiment
     keys = checked_set(overrides, setting_keys)
     path = experiment.path
+    with located(path, "--set"):  # every key and value, before any is looked up in the cells
+        configs = [with_overrides(cell.config, overrides) for cell in experiment.cells]
     refuse_layered(path, keys, [("its [vary]", frozenset(key for key, _, _ in experiment.vary))])
     for key in sorted(keys):
         section, name = key.split(".")
@@ -119,8 +117,8 @@ def experiment_with_set(experiment: Experiment, overrides: Mapping[str, Any], se
             raise ConfigError(f"{path}: its cells differ in {key} (\"{first}\": {a!r}, \"{second}\": {b!r}), so --set "
                               f"would run them alike under names that say they differ; run one cell with `avsim run "
                               f"--config {path} --cell NAME --set {key}=...`, or edit a copy of the file")
+    cells = [Cell(cell.name, config, cell.keys_set | keys) for cell, config in zip(experiment.cells, configs)]
     with located(path, "--set"):
-        cells = [Cell(cell.name, with_overrides(cell.config, overrides), cell.keys_set | keys) for cell in experiment.cells]
         check_read_by_some((cell.config for cell in cells), keys, runs="cell")
     return dataclasses.replace(experiment, title=set_title(experiment.title, overrides), cells=tuple(cells))
 

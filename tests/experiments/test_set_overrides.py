@@ -59,6 +59,17 @@ def test_a_run_of_the_set_is_what_avsim_run_gives_the_same_cell_and_seed(tmp_pat
         assert run.config == replayed
 
 
+def test_a_value_is_checked_against_the_files_config_not_the_defaults(tmp_path):
+    # vote_k = 6 is over the default vote_n of 5, but within the file's vote_n of 8.
+    path = tmp_path / "vote.toml"
+    path.write_text(FILE.format(extra="", a_max_mps2=8.0).replace("a_max_mps2 = 8.0", "vote_n = 8")
+                    .replace('name = "side_camera"', 'name = "temporal_vote"'))
+    with_set = experiment_with_set(load_experiment(path), parse_set(["policy.vote_k=6"]), frozenset())
+    assert {cell.config.policy.vote_k for cell in with_set.cells} == {6}
+    with pytest.raises(ConfigError, match="--set: policy.vote_k and policy.vote_n must satisfy"):
+        experiment_with_set(load_experiment(path), parse_set(["policy.vote_k=9"]), frozenset())
+
+
 def test_no_set_leaves_the_experiment_as_it_is(tmp_path):
     experiment = load_experiment(_write(tmp_path))
     assert experiment_with_set(experiment, {}, frozenset()) is experiment
