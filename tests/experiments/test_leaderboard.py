@@ -199,8 +199,6 @@ def test_an_existing_board_folder_is_not_overwritten_without_resume(tmp_path):
 SHORT_APPROACH_M = 60
 
 
-@pytest.mark.slow
-@pytest.mark.both_cores  # two worker processes
 def test_a_resume_with_other_set_values_than_the_folders_is_refused_before_anything_runs(tmp_path, capsys):
     path = write(tmp_path, TINY)
     out = tmp_path / "board"
@@ -235,6 +233,8 @@ def test_a_set_a_leaderboards_rows_would_override_is_refused(tmp_path, item, whe
     assert f"{path}: {where} sets {key} itself" in str(refused.value), str(refused.value)
 
 
+@pytest.mark.slow
+@pytest.mark.both_cores  # two worker processes
 def test_the_quick_leaderboard_runs_every_defence(tmp_path, capsys):
     """`avsim leaderboard --quick` on the shipped board: every defence, condition and road of its quick
     subset (Town07 standard, one seed) with the learned detector (and COCO for the ensembles), on a
