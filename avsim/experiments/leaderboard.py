@@ -157,8 +157,15 @@ class Leaderboard:
 
     def layers(self) -> list[tuple[str, frozenset[str]]]:
         """Where the file and its --set values set keys over the base config (where, dotted keys): none of
-        them may a --setting set too, and a --set none but [defaults]'s."""
-        layers = [("[defaults]", self.defaults_keys), ("[vary]", frozenset(key for key, _, _ in self.vary))]
+        them may a --setting set too."""
+        return ([("[defaults]", self.defaults_keys)] + self.layers_over_base()
+                + [("--set", frozenset(key for key, _ in self.set_items))])
+
+    def layers_over_base(self) -> list[tuple[str, frozenset[str]]]:
+        """The layers that runs compose over the base config ([vary], conditions, defences, places,
+        availability scenarios; (where, dotted keys)): a --set, which goes into the base config, may set
+        none of their keys, since those runs would keep the file's value."""
+        layers = [("[vary]", frozenset(key for key, _, _ in self.vary))]
         layers += [(f'condition "{name}"', dotted_keys(c.overrides)) for name, c in self.conditions.items()]
         for defence in self.defences:
             layers += [(f'defence "{defence.name}"', dotted_keys(defence.overrides)),
@@ -166,7 +173,7 @@ class Leaderboard:
         layers += [(f'availability scenario "{a.name}"', dotted_keys(a.overrides)) for a in self.availability]
         if self.places:
             layers.append(("[[places]]", dotted_keys(place_overrides(self.places[0]))))
-        return layers + [("--set", frozenset(key for key, _ in self.set_items))]
+        return layers
 
     @property
     def name(self) -> str:
@@ -278,7 +285,7 @@ def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, ye
     _unique(path, "availability", [a.name for a in availability])
     board = Leaderboard(path, set_title(title, overrides) if overrides else title, base, vary, conditions, defences,
                         places, availability, dotted_keys(defaults), set_items=tuple(flat_items(overrides).items()))
-    refuse_layered(path, keys_given, [(where, keys) for where, keys in board.layers() if where not in ("[defaults]", "--set")])
+    refuse_layered(path, keys_given, board.layers_over_base())
     check_plan_size(board.size(quick), f"{path}: {len(defences)} defences", yes=yes)
     _check_runs(board)
     _check_keys_read(board, defaults, keys_given)

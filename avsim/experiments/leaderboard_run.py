@@ -24,6 +24,7 @@ from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.folder_setting import check_resumed_setting, record_setting
 from avsim.experiments.set_overrides import check_resumed_set, flags_of_items, record_set
 from avsim.experiments.spec import check_renderer
 from avsim.metrics import write_json_atomic
@@ -44,6 +45,7 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     workers = resolve_workers(workers, address)
     if resume:
         check_resumed_set(out, dict(board.set_items), allowed=False, other_fix="give another --out for these runs")
+        check_resumed_setting(out, board.setting, "avsim leaderboard")
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim leaderboard {board.path} --out {out}", results_name=RESULTS_FILE):
         return _run_leaderboard_locked(board, out, quick=quick, workers=workers, resume=resume, progress=progress,
@@ -68,6 +70,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
     if board.path.resolve() != (out / "leaderboard.toml").resolve():
         shutil.copy2(board.path, out / "leaderboard.toml")
     record_set(out, dict(board.set_items))
+    record_setting(out, board.setting)
     nodes = cluster_nodes(backend, address)
     records, ran = run_resumable(plan, results_path, existing, resume_command=f"{command} --resume", workers=workers,
                                  progress=progress, description="leaderboard", backend=backend, address=address,

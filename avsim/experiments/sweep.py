@@ -69,6 +69,7 @@ from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
+from avsim.experiments.folder_setting import check_resumed_setting, record_setting
 from avsim.experiments.set_overrides import (check_resumed_set, checked_set, flags_of_items, flat_items, record_set,
                                              refuse_layered, set_title)
 from avsim.experiments.run_task import RunSpec
@@ -307,6 +308,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     workers = resolve_workers(workers, address)
     if resume:
         check_resumed_set(out, dict(sweep.set_items), allowed=False, other_fix="give another --out for these runs")
+        check_resumed_setting(out, sweep.setting, "avsim sweep")
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
         return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
@@ -331,6 +333,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
     record_set(out, dict(sweep.set_items))
+    record_setting(out, sweep.setting)
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     # --setting and --set, which the resume command and the manifest's command repeat.
     file_flags = f" --setting {sweep.setting}" if sweep.setting != BASELINE else ""

@@ -211,6 +211,18 @@ def test_a_resume_with_other_set_values_than_the_folders_is_refused_before_anyth
     assert sorted(out.rglob("*")) == before
 
 
+def test_a_resume_under_another_setting_than_the_folders_is_refused_before_anything_runs(tmp_path, capsys):
+    path = write(tmp_path, TINY)
+    out = tmp_path / "board"
+    out.mkdir()
+    (out / "setting.json").write_text('{"setting": "sheeting"}')
+    before = sorted(out.rglob("*"))
+    assert main(["leaderboard", str(path), "--out", str(out), "--resume", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "rendered under --setting sheeting and this avsim leaderboard under --setting baseline" in err
+    assert sorted(out.rglob("*")) == before
+
+
 def test_a_leaderboard_under_a_set_gives_every_run_the_value(tmp_path):
     path = write(tmp_path, TINY)
     board = load_leaderboard(path, overrides=parse_set(["scenario.start_dist_m=60"]))

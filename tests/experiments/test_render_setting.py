@@ -184,7 +184,8 @@ def test_avsim_leaderboard_under_a_setting_runs_it_and_says_so(tmp_path, capsys)
     assert records and all(r["result"]["config"]["scenario"]["road_paint"] == "worn" for r in records)
     assert "--setting worn_paint" in json.loads((out / "manifest.json").read_text())["command"]
     assert "render setting worn_paint" in (out / "leaderboard.md").read_text()
-    capsys.readouterr()
+    _assert_a_resume_must_give_the_setting(["leaderboard", str(path), "--out", str(out), "--workers", "1", "--no-progress",
+                                            "--rrd", "none", "--resume"], out, capsys)
 
 
 def test_avsim_leaderboard_refuses_a_setting_its_file_sets_in_one_line_and_writes_nothing(tmp_path, capsys):
@@ -224,4 +225,20 @@ def test_avsim_sweep_under_a_setting_runs_it_and_says_so(tmp_path, capsys):
     records = read_records(out / "results.jsonl")
     assert len(records) == 4 and all(r["result"]["config"]["scenario"]["road_paint"] == "worn" for r in records)
     assert "--setting worn_paint" in json.loads((out / "manifest.json").read_text())["command"]
+    _assert_a_resume_must_give_the_setting(["sweep", str(SWEEPS / "sweep_smoke.toml"), "--out", str(out), "--workers",
+                                            "1", "--no-progress", "--rrd", "none", "--resume"], out, capsys)
+
+
+def _assert_a_resume_must_give_the_setting(resume: list[str], out: Path, capsys) -> None:
+    """The folder `out`, run under `worn_paint`, keeps the setting's name, and the `resume` command refuses it in one
+    line, writing nothing, unless it gives the setting again; then it runs nothing."""
+    assert json.loads((out / "setting.json").read_text()) == {"setting": "worn_paint"}
+    capsys.readouterr()
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert cli.main(resume) == 2  # under the default renders every run would run again, beside the first ones
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "rendered under --setting worn_paint" in err and "give --setting worn_paint" in err
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert cli.main([*resume, "--setting", "worn_paint"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["ran"] == 0
     capsys.readouterr()

@@ -224,6 +224,15 @@ def test_a_sweep_with_set_runs_every_point_with_the_value_and_a_resume_must_give
     assert json.loads((out / "manifest.json").read_text())["ran"] == 0
 
 
+def test_a_resume_under_another_setting_than_the_folders_is_refused_before_anything_runs(smoke_out, capsys):
+    before = {p: p.read_bytes() for p in smoke_out.rglob("*") if p.is_file()}
+    assert cli.main(["sweep", str(SMOKE), "--out", str(smoke_out), "--workers", "1", "--no-progress", "--resume",
+                     "--setting", "sheeting"]) == 2  # made under the default renders: every run would run again
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "rendered under --setting baseline and this avsim sweep under --setting sheeting" in err, err
+    assert {p: p.read_bytes() for p in smoke_out.rglob("*") if p.is_file()} == before
+
+
 def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_again_on_resume(smoke_out, tmp_path,
                                                                                               monkeypatch):
     from avsim.experiments import run_task
@@ -235,10 +244,16 @@ def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_aga
             raise RuntimeError("EGL context lost")
         return real(config, **kwargs)
 
-    # --workers 1 runs in this process, and --batch 1 one run at a time, through run_recorded
+    # --workers 1 runs in this process, and --batch 1 one run at a time, through run_recorded. The two runs at
+    # 40 km/h are the smoke sweep's own, finished: the folder is one that a first, interrupted sweep left.
     monkeypatch.setattr(run_task, "run_recorded", renderer_lost_at_60)
     out = tmp_path / "failing"
-    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--batch", "1", "--no-progress"]) == 0
+    out.mkdir()
+    finished = [line for line in (smoke_out / "results.jsonl").read_text().splitlines()
+                if json.loads(line)["result"]["config"]["scenario"]["speed_kmh"] == 40.0]
+    (out / "results.jsonl").write_text("".join(line + "\n" for line in finished))
+    assert cli.main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--batch", "1", "--no-progress",
+                     "--resume"]) == 0
     records = read_records(out / "results.jsonl")
     assert [r["status"] for r in records] == ["ok", "ok", "failed", "failed"]
     for record in records[2:]:
