@@ -121,6 +121,7 @@ def test_wrong_shape_texture_exits_2(tmp_path, capsys):
     assert code == 2 and len(err) == 1 and "wide.png" in err[0]
 
 
+@pytest.mark.slow  # two study runs with the detector (about 25 CPU-s): a finding, beside the study's outcomes
 def test_the_strongest_shipped_attack_against_baseline_in_town07(study_run):
     # With the rigid car yang delayed the first detection at seed 0 from 39.6 m to 34.9 m and
     # baseline ran 0.8 m past. With the suspended car (the body squats 0.04 deg at cruise and the

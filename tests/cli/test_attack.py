@@ -36,21 +36,17 @@ def _record_each_stage(monkeypatch, what) -> list:
 STAGES = ("fixed distances", "drive-bys", "figure")
 
 
-def test_attack_eval_draws_every_frame_under_the_setting_and_names_it_in_the_report(tmp_path, monkeypatch):
-    seen = _record_each_stage(monkeypatch, lambda base: (base.scenario.materials, base.scenario.foliage))
+# One measurement with both flags: the fixed-distance tables run for real (about 17 CPU-s), and each flag reaches
+# every stage on its own path (the render setting into the scenario, the weights into the perception).
+def test_attack_eval_draws_every_frame_under_the_setting_scores_it_with_the_named_weights_and_names_both(
+        tmp_path, monkeypatch):
+    weights = "models/sign_detector_scenes.pt"
+    seen = _record_each_stage(monkeypatch, lambda base: (base.scenario.materials, base.scenario.foliage,
+                                                         base.perception.weights_path))
     out = tmp_path / "eval"
     assert cli.main(["attack", "eval", "--signs", "clean", "--placements", "standard", "--drives", "1",
-                     "--setting", "textured_clusters", "--out", str(out)]) == 0
-    assert seen == [(stage, ("textured", "clusters")) for stage in STAGES]
+                     "--setting", "textured_clusters", "--weights", weights, "--out", str(out)]) == 0
+    assert seen == [(stage, ("textured", "clusters", weights)) for stage in STAGES]
     report = (out / "report.md").read_text()
     assert "Render setting: `textured_clusters` (scenario.materials=textured, scenario.foliage=clusters)" in report
-
-
-def test_attack_eval_scores_every_frame_with_the_named_weights_and_names_them_in_the_report(tmp_path, monkeypatch):
-    weights = "models/sign_detector_scenes.pt"
-    seen = _record_each_stage(monkeypatch, lambda base: base.perception.weights_path)
-    out = tmp_path / "eval"
-    assert cli.main(["attack", "eval", "--signs", "clean", "--placements", "standard", "--drives", "1",
-                     "--weights", weights, "--out", str(out)]) == 0
-    assert seen == [(stage, weights) for stage in STAGES]
-    assert f"The own detector ({weights}) on full 640x480 frames" in (out / "report.md").read_text()
+    assert f"The own detector ({weights}) on full 640x480 frames" in report
