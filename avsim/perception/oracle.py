@@ -31,7 +31,8 @@ class OraclePerception(Perception):
         """Ground-truth boxes [px] of the signs `camera` sees (from segmentation), confidence 1, those at
         least `min_box_height_px` tall, tallest first: the oracle mode, not a perception.
         """
-        boxes = rig.sign_boxes(data, camera, self._faces)
+        # A sign too far for the oracle's range is not rendered at all: most of an approach's frames.
+        boxes = rig.sign_boxes(data, camera, self._faces, min_height_px=self._min_box_height_px)
         size = rig.intrinsics(camera)
         detections = [
             Detection(self._kinds[name], 1.0, box, camera, touches_border(box, size.width_px, size.height_px))

@@ -24,6 +24,12 @@ from avsim.sensors.photo import PhotoModel
 CAMERA_NAMES = ("front", "side")
 # The ego car's own shell is in geom group 2; its cameras do not see it (they sit inside it).
 EGO_GROUP = 2
+# How many segmentation pixel rows a sign's box can span beyond its outline's projected height h: the rows whose
+# centres lie within a span of h number at most floor(h) + 1 (1 row), and the outline's points leave out the face's
+# thickness and GL's own rounding, for which the region read back is padded by 2 px (2 rows). A sign that cannot
+# reach the height a caller asks for (`CameraRig.sign_boxes`' min_height_px) is so left out only where its box
+# would be shorter: the oracle's frames of a far sign render nothing and detect what they did.
+SMALLEST_BOX_SLACK_SEG_PX = 3.0
 
 
 def camera_view_option() -> mujoco.MjvOption:
@@ -202,19 +208,25 @@ class CameraRig:
         packed = colours[..., 0] | (colours[..., 1] << 8) | (colours[..., 2] << 16)
         return self._seg.geom_id_lookup()[packed]
 
-    def sign_boxes(self, data: mujoco.MjData, camera: str, signs: dict[str, tuple[int, np.ndarray]]) -> dict[str, tuple[float, float, float, float]]:
+    def sign_boxes(self, data: mujoco.MjData, camera: str, signs: dict[str, tuple[int, np.ndarray]],
+                   min_height_px: float = 0.0) -> dict[str, tuple[float, float, float, float]]:
         """Tight box of each sign face's visible pixels, from a segmentation render.
 
         signs: name -> (face geom id, (N, 3) world points enclosing the face). The points
         only bound the part of the image read back; the box comes from the segmentation
         pixels, so occluded parts of a sign are left out of it.
+        min_height_px: the caller wants no box shorter than this [image px]. A sign whose projected
+        outline cannot cover that many pixel rows is left out before rendering, and with none left
+        nothing is rendered: the oracle's far frames (`SMALLEST_BOX_SLACK_SEG_PX` says why this
+        drops only boxes the caller would drop). 0: every visible sign.
         Returns name -> (x0, y0, x1, y1) in RGB-image pixel coordinates, with edges at
         multiples of 1 / seg_supersample px; signs with no visible pixel are left out.
         """
         ss = self._config.seg_supersample
         width, height = self._config.width_px * ss, self._config.height_px * ss
         pose = self.pose(data, camera)
-        regions = {name: self._project_bounds(pose, camera, pts, ss) for name, (_, pts) in signs.items()}
+        regions = {name: self._project_bounds(pose, camera, pts, ss) for name, (_, pts) in signs.items()
+                   if min_height_px <= 0 or self._can_reach_height(pose, camera, pts, ss, min_height_px)}
         regions = {name: r for name, r in regions.items() if r is not None}
         if not regions:
             return {}
@@ -240,6 +252,16 @@ class CameraRig:
             cols = np.flatnonzero(mask[rows[0]: rows[-1] + 1].any(axis=0))
             boxes[name] = ((x0 + cols[0]) / ss, (y0 + rows[0]) / ss, (x0 + cols[-1] + 1) / ss, (y0 + rows[-1] + 1) / ss)
         return boxes
+
+    def _can_reach_height(self, pose: CameraPose, camera: str, points_m: np.ndarray, ss: int, min_height_px: float) -> bool:
+        """Whether the face outlined by `points_m` (N, 3) [world m] can give a box at least `min_height_px` tall
+        [image px]: False only where the outline's projected height, with `SMALLEST_BOX_SLACK_SEG_PX`, is shorter."""
+        cam = (np.asarray(points_m) - pose.position_m) @ pose.rotation  # MuJoCo camera frame
+        depth = -cam[:, 2]
+        if (depth <= 0).any():  # behind or straddling the camera plane: no bound from the projection
+            return True
+        v = self.intrinsics(camera).f_px * ss * cam[:, 1] / depth
+        return float(v.max() - v.min()) + SMALLEST_BOX_SLACK_SEG_PX >= min_height_px * ss
 
     def _project_bounds(self, pose: CameraPose, camera: str, points_m: np.ndarray, ss: int) -> tuple[int, int, int, int] | None:
         """Pixel rectangle (x0, y0, x1, y1) at seg resolution enclosing the projected points,

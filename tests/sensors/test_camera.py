@@ -4,9 +4,11 @@ import hashlib
 import math
 
 import cv2
+import mujoco
 import numpy as np
 import pytest
 
+from avsim.config import ORACLE_MIN_BOX_HEIGHT_PX, CameraConfig
 from avsim.sensors.pinhole import pinhole_distance_m
 from avsim.errors import RenderError
 from avsim.loop import ClosedLoop
@@ -89,6 +91,29 @@ def test_projected_sign_corners_land_within_2_px_of_segmentation_box(near_scene,
 def _aim_car_at_sign(loop: ClosedLoop, x_m: float, y_m: float) -> None:
     sign = loop.scene.stop_sign.base_pos_m
     loop.vehicle.place(x_m, y_m, math.atan2(sign[1] - y_m, sign[0] - x_m), 0.0)
+
+
+@pytest.mark.parametrize("town", ["town07", "town10"])  # the stop sign alone; a town with more signs
+def test_a_minimum_height_leaves_out_only_boxes_shorter_than_it_and_skips_the_far_renders(town, monkeypatch):
+    loop = ClosedLoop(make_config(scenario={"town": town}, camera={"seg_supersample": CameraConfig().seg_supersample}))
+    faces = {s.name: (loop.model.geom(s.face_geom).id, s.corners_m()) for s in loop.scene.signs}
+    min_px = ORACLE_MIN_BOX_HEIGHT_PX
+    renders = []
+    real = gl.OffscreenRenderer.render
+    monkeypatch.setattr(gl.OffscreenRenderer, "render", lambda self, *a, **k: renders.append(1) or real(self, *a, **k))
+    skipped = 0
+    # from where the stop sign is a few pixels tall to where it first passes the height, in steps of a few pixels' rows
+    for depth_m in np.arange(60.0, 190.0, 2.5):
+        _put_camera_at_depth(loop, depth_m)
+        mujoco.mj_forward(loop.model, loop.data)
+        every = loop.rig.sign_boxes(loop.data, "front", faces)
+        before = len(renders)
+        tall = loop.rig.sign_boxes(loop.data, "front", faces, min_height_px=min_px)
+        skipped += len(renders) == before
+        assert {k: v for k, v in tall.items() if v[3] - v[1] >= min_px} == {k: v for k, v in every.items() if v[3] - v[1] >= min_px}
+    loop.close()
+    if town == "town07":
+        assert skipped >= 20, "beyond the oracle's range the front camera should render nothing"
 
 
 def test_segmentation_box_respects_occlusion_by_buildings():
