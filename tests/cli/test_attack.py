@@ -3,6 +3,8 @@ setting, and scored by the named weights."""
 
 from pathlib import Path
 
+import pytest
+
 import avsim.experiments.attacks.disappearance as disappearance
 import avsim.experiments.attacks.texture_eval as texture_eval
 from avsim import cli
@@ -38,6 +40,7 @@ STAGES = ("fixed distances", "drive-bys", "figure")
 
 # One measurement with both flags: the fixed-distance tables run for real (about 17 CPU-s), and each flag reaches
 # every stage on its own path (the render setting into the scenario, the weights into the perception).
+@pytest.mark.slow
 def test_attack_eval_draws_every_frame_under_the_setting_scores_it_with_the_named_weights_and_names_both(
         tmp_path, monkeypatch):
     weights = "models/sign_detector_scenes.pt"

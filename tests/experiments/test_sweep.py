@@ -205,6 +205,7 @@ def test_a_second_sweep_into_the_same_folder_needs_resume_which_reuses_the_ok_ru
     assert (smoke_out / "results.jsonl").read_text() == before
 
 
+@pytest.mark.slow  # end to end, about 15-20 CPU-s: the slow pass, so the default run stays under its 10 minutes
 def test_a_sweep_with_set_runs_every_point_with_the_value_and_a_resume_must_give_it_again(tmp_path, capsys):
     out = tmp_path / "smoke_45"
     base = ["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-progress"]
@@ -233,6 +234,7 @@ def test_a_resume_under_another_setting_than_the_folders_is_refused_before_anyth
     assert {p: p.read_bytes() for p in smoke_out.rglob("*") if p.is_file()} == before
 
 
+@pytest.mark.slow  # end to end, about 15-20 CPU-s: the slow pass, so the default run stays under its 10 minutes
 def test_a_run_that_raises_is_a_failed_record_counted_in_the_summary_and_run_again_on_resume(smoke_out, tmp_path,
                                                                                               monkeypatch):
     from avsim.experiments import run_task
