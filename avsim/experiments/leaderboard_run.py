@@ -23,7 +23,7 @@ from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
-from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, holds_runs, run_resumable
 from avsim.experiments.folder_setting import check_resumed_setting, record_setting
 from avsim.experiments.set_overrides import check_resumed_set, flags_of_items, record_set
 from avsim.experiments.spec import check_renderer
@@ -43,7 +43,7 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
-    if resume:
+    if resume and holds_runs(out / RESULTS_FILE):  # a first run under --resume has nothing to mix with
         check_resumed_set(out, dict(board.set_items), allowed=False, other_fix="give another --out for these runs")
         check_resumed_setting(out, board.setting, "avsim leaderboard")
     # One command at a time in `out`; a folder made here and left without a record is removed.

@@ -34,6 +34,12 @@ RESULTS_FILE = "results.jsonl"
 Record = dict[str, Any]
 
 
+def holds_runs(results_path: Path) -> bool:
+    """Whether `results_path` exists and is not empty: a folder whose runs a resume would add to (its --setting and
+    --set values matter), not one a first command makes."""
+    return results_path.is_file() and results_path.stat().st_size > 0
+
+
 def existing_records(results_path: Path, resume: bool) -> list[Record]:
     """The records already in `results_path`; a one-line ConfigError when there are some and
     `resume` is off, or the file is not avsim's or has a corrupt line (`read_records`)."""

@@ -67,7 +67,7 @@ from avsim.software import software_versions
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
-from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, holds_runs, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
 from avsim.experiments.folder_setting import check_resumed_setting, record_setting
 from avsim.experiments.set_overrides import (check_resumed_set, checked_set, flags_of_items, flat_items, record_set,
@@ -306,7 +306,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
-    if resume:
+    if resume and holds_runs(out / RESULTS_FILE):  # a first run under --resume has nothing to mix with
         check_resumed_set(out, dict(sweep.set_items), allowed=False, other_fix="give another --out for these runs")
         check_resumed_setting(out, sweep.setting, "avsim sweep")
     # One command at a time in `out`; a folder made here and left without a record is removed.

@@ -204,6 +204,7 @@ def test_a_resume_with_other_set_values_than_the_folders_is_refused_before_anyth
     out = tmp_path / "board"
     out.mkdir()
     (out / "set.json").write_text('{"set": {"scenario.start_dist_m": 60}}')
+    (out / "results.jsonl").write_text('{"status": "ok"}\n')  # runs there: refused before they are read
     before = sorted(out.rglob("*"))
     assert main(["leaderboard", str(path), "--out", str(out), "--resume", "--no-progress"]) == 2
     err = capsys.readouterr().err
@@ -216,6 +217,7 @@ def test_a_resume_under_another_setting_than_the_folders_is_refused_before_anyth
     out = tmp_path / "board"
     out.mkdir()
     (out / "setting.json").write_text('{"setting": "sheeting"}')
+    (out / "results.jsonl").write_text('{"status": "ok"}\n')
     before = sorted(out.rglob("*"))
     assert main(["leaderboard", str(path), "--out", str(out), "--resume", "--no-progress"]) == 2
     err = capsys.readouterr().err
