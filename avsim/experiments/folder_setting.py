@@ -10,10 +10,10 @@ folders another way, from the configs in their records: `avsim.experiments.repro
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from avsim.errors import ConfigError
+from avsim.experiments.resumable import kept_value
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
 
@@ -41,15 +41,5 @@ def check_resumed_setting(folder: Path, setting: str, command: str) -> None:
 
 def folder_setting(folder: Path) -> str:
     """The render setting FOLDER's runs were run under (`baseline` for a folder without `SETTING_FILE`)."""
-    path = folder / SETTING_FILE
-    if not path.is_file():
-        return BASELINE
-    try:
-        held = json.loads(path.read_text())["setting"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ConfigError(f"--resume {folder}: its {SETTING_FILE} cannot be read ({exc}); it is not one avsim "
-                          "wrote: remove it if the folder was run under the default renders") from None
-    if not isinstance(held, str):
-        raise ConfigError(f"--resume {folder}: its {SETTING_FILE} is not one avsim wrote (no setting name under "
-                          "'setting'); remove it if the folder was run under the default renders")
-    return held
+    return kept_value(folder, SETTING_FILE, "setting", str, BASELINE, "setting name",
+                      "remove it if the folder was run under the default renders")

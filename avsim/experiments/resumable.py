@@ -34,6 +34,23 @@ RESULTS_FILE = "results.jsonl"
 Record = dict[str, Any]
 
 
+def kept_value(folder: Path, file_name: str, key: str, kind: type, absent: Any, what: str, fix: str) -> Any:
+    """`key`'s value in the JSON file `file_name` that a command keeps in FOLDER beside its runs (`absent` where there
+    is no such file); a one-line ConfigError, for a `--resume` of FOLDER, where the file is not one avsim wrote.
+    what: the value in words ("a table of keys"); fix: the message's way out."""
+    path = folder / file_name
+    if not path.is_file():
+        return absent
+    try:
+        held = json.loads(path.read_text())[key]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"--resume {folder}: its {file_name} cannot be read ({exc}); it is not one avsim wrote: "
+                          f"{fix}") from None
+    if not isinstance(held, kind):
+        raise ConfigError(f"--resume {folder}: its {file_name} is not one avsim wrote (no {what} under '{key}'); {fix}")
+    return held
+
+
 def holds_runs(results_path: Path) -> bool:
     """Whether `results_path` exists and is not empty: a folder whose runs a resume would add to (its --setting and
     --set values matter), not one a first command makes."""

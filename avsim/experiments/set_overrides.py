@@ -34,6 +34,7 @@ from typing import Any
 from avsim.config import with_overrides
 from avsim.config_owners import check_read_by_some, dotted_keys
 from avsim.errors import ConfigError
+from avsim.experiments.resumable import kept_value
 from avsim.experiments.spec import Cell, Experiment, located
 from avsim.metrics import write_json_atomic
 
@@ -158,15 +159,4 @@ def check_resumed_set(folder: Path, items: Mapping[str, Any], *, allowed: bool, 
 
 def _folder_set(folder: Path) -> dict[str, Any]:
     """The --set values FOLDER's runs were given ({} for a folder made without them)."""
-    path = folder / SET_FILE
-    if not path.is_file():
-        return {}
-    try:
-        held = json.loads(path.read_text())["set"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ConfigError(f"--resume {folder}: its {SET_FILE} cannot be read ({exc}); it is not one avsim wrote: "
-                          "remove it if the folder was made without --set") from None
-    if not isinstance(held, dict):
-        raise ConfigError(f"--resume {folder}: its {SET_FILE} is not one avsim wrote (no table of keys under 'set'); "
-                          "remove it if the folder was made without --set")
-    return held
+    return kept_value(folder, SET_FILE, "set", dict, {}, "table of keys", "remove it if the folder was made without --set")
