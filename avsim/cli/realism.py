@@ -34,7 +34,10 @@ def _max_dist_flag(text: str) -> int:
 
 def _cmd_realism(args: argparse.Namespace) -> int:
     from avsim.realism.benchmark import BenchmarkPlan, run_benchmark
+    from avsim.cli.overrides import parse_set
+    from avsim.experiments.set_overrides import set_flags
     from avsim.realism.report import report, write_figure
+    from avsim.realism.set_values import check_set_values
     from avsim.software import software_versions
     from avsim.world.towns import TOWNS
 
@@ -45,12 +48,15 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     if (out / "frames.jsonl").exists():  # a finished run's frames: another run into it would replace them
         raise OutputError(f"--out {out} already holds a realism run (frames.jsonl); choose another --out, or remove "
                           "that folder to run it again")
-    plan = BenchmarkPlan(tuple(SETTINGS[name] for name in args.settings), tuple(towns), args.frames,
-                         tuple(args.networks), args.threshold, args.seed, args.max_dist_m)
+    settings = tuple(SETTINGS[name] for name in args.settings)
+    overrides = parse_set(args.set)
+    check_set_values(overrides, settings)
+    plan = BenchmarkPlan(settings, tuple(towns), args.frames, tuple(args.networks), args.threshold, args.seed,
+                         args.max_dist_m, overrides)
     rows = run_benchmark(plan, args.workers)
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "frames.jsonl", "".join(json.dumps(row) + "\n" for row in rows))
-    text = report(rows, args.threshold, software_versions())
+    text = report(rows, args.threshold, software_versions(), set_flags(overrides))
     write_text(out / "report.md", text)
     figure = temporary_path(out / "recall.png", ".png")
     write_figure(rows, figure)
@@ -80,6 +86,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     realism.add_argument("--threshold", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
                          help="confidence that counts (the braking threshold, default 0.5)")
     realism.add_argument("--seed", type=int, default=0, help="seed of the frame set (default 0)")
+    realism.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                         help="give every frame this camera.* or scenario.* value, e.g. --set camera.fovy_deg=40 "
+                              "(repeatable); a key a scene draw or one of --settings sets is refused")
     realism.add_argument("--workers", type=number_flag(1, 64, integer=True), default=min(2, os.cpu_count() or 1),
                          help="worker processes (default 2)")
     add_output_argument(realism, "--out", kind=FOLDER, default="results/realism",

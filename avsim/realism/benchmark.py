@@ -10,7 +10,9 @@ from __future__ import annotations
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
 
 from avsim.config import SimConfig, with_overrides
 from avsim.realism.frame_set import DEFAULT_MAX_DIST_M, SceneDraw, render_scene, scene_draws
@@ -34,6 +36,7 @@ class BenchmarkPlan:
     threshold: float = 0.5
     seed: int = 0
     max_dist_m: int = DEFAULT_MAX_DIST_M
+    overrides: Mapping[str, Any] = field(default_factory=dict)  # `--set` values (nested), under every frame
 
     def jobs(self) -> list[tuple[RenderSetting, SceneDraw]]:
         """Every (setting, scene) pair to render: each setting over the same seeded scene draws."""
@@ -45,12 +48,12 @@ def _start_worker(env: dict[str, str], parent_pid: int, networks: tuple[str, ...
     _WORKER["networks"] = build_networks(networks)
 
 
-def run_job(job: tuple[RenderSetting, SceneDraw, float, int]) -> list[dict]:
+def run_job(job: tuple[RenderSetting, SceneDraw, float, int, Mapping[str, Any]]) -> list[dict]:
     """Rows of one scene under one setting: one per frame and network. job: (setting, scene, detection
-    threshold, farthest bin's end [m])."""
-    setting, scene, threshold, max_dist_m = job
+    threshold, farthest bin's end [m], --set values)."""
+    setting, scene, threshold, max_dist_m, overrides = job
     rows = []
-    for index, (frame, model, data, rig) in enumerate(render_scene(scene, setting, max_dist_m)):
+    for index, (frame, model, data, rig) in enumerate(render_scene(scene, setting, max_dist_m, overrides)):
         segmentation: dict = {}
         common = {"setting": setting.name, "town": scene.town, "placement": scene.placement, "scene": scene.index,
                   "frame": index, "camera": frame.camera, "dist_m": None if frame.dist_m is None else round(frame.dist_m, 3),
@@ -66,8 +69,9 @@ def run_benchmark(plan: BenchmarkPlan, workers: int) -> list[dict]:
 
     check_offscreen_rendering()  # no EGL: one line, before the progress bar and the workers
     for setting in plan.settings:  # so is a GL that filters less than a setting asks
-        check_texture_anisotropy(with_overrides(SimConfig(), setting.config_overrides()).camera.texture_anisotropy)
-    jobs = [(setting, scene, plan.threshold, plan.max_dist_m) for setting, scene in plan.jobs()]
+        config = with_overrides(with_overrides(SimConfig(), setting.config_overrides()), plan.overrides)
+        check_texture_anisotropy(config.camera.texture_anisotropy)
+    jobs = [(setting, scene, plan.threshold, plan.max_dist_m, plan.overrides) for setting, scene in plan.jobs()]
     rows: list[dict] = []
     # Built here first, whatever the workers: missing or corrupt weights are refused in one line
     # before anything renders, not inside a worker.

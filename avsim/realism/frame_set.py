@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -95,25 +96,35 @@ def scene_draws(towns: tuple[str, ...], draws_per_town: int, seed: int) -> list[
     return scenes
 
 
-def scene_config(scene: SceneDraw, setting: RenderSetting) -> SimConfig:
-    """The `SimConfig` that renders `scene` (its town, placement, clean sign and sun) under the
-    render `setting`'s overrides (camera, scenario materials, ...)."""
+def _scene_keys(scene: SceneDraw) -> dict[str, object]:
+    """The scenario keys a scene draw sets (its town, placement, clean sign, seed and sun)."""
     # The scene's seed draws its clouds, where the setting has them; nothing else in a scene reads it.
-    scenario = {"town": scene.town, "placement": scene.placement, "sign": "clean", "seed": scene.seed,
-                "sun_elevation_deg": scene.sun_elevation_deg, "sun_azimuth_deg": scene.sun_azimuth_deg,
-                "sun_intensity": scene.sun_intensity}
-    overrides = setting.config_overrides()
-    overrides["scenario"] = {**overrides.get("scenario", {}), **scenario}
-    return with_overrides(SimConfig(), overrides)
+    return {"town": scene.town, "placement": scene.placement, "sign": "clean", "seed": scene.seed,
+            "sun_elevation_deg": scene.sun_elevation_deg, "sun_azimuth_deg": scene.sun_azimuth_deg,
+            "sun_intensity": scene.sun_intensity}
 
 
-def render_scene(scene: SceneDraw, setting: RenderSetting, max_dist_m: int = DEFAULT_MAX_DIST_M
-                 ) -> Iterator[tuple[Frame, mujoco.MjModel, mujoco.MjData, CameraRig]]:
+# The dotted keys every scene draw sets itself: a `--set` of one is refused (`avsim.realism.set_values`).
+FRAME_SET_KEYS = tuple(f"scenario.{key}" for key in _scene_keys(SceneDraw("town07", 0, "standard", 0, 0.0, 0.0, 0.0)))
+
+
+def scene_config(scene: SceneDraw, setting: RenderSetting, overrides: Mapping[str, Any] | None = None) -> SimConfig:
+    """The `SimConfig` that renders `scene` (its town, placement, clean sign and sun) under the
+    render `setting`'s overrides (camera, scenario materials, ...), and then `overrides` (`avsim realism --set`:
+    nested, camera and scenario keys none of the others sets)."""
+    config = with_overrides(SimConfig(), setting.config_overrides())
+    if overrides:
+        config = with_overrides(config, overrides)
+    return with_overrides(config, {"scenario": _scene_keys(scene)})
+
+
+def render_scene(scene: SceneDraw, setting: RenderSetting, max_dist_m: int = DEFAULT_MAX_DIST_M,
+                 overrides: Mapping[str, Any] | None = None) -> Iterator[tuple[Frame, mujoco.MjModel, mujoco.MjData, CameraRig]]:
     """Each frame of `scene` under `setting`, with the model, data and rig it was drawn by (for a
     segmentation look-up while the pose holds): every camera at every bin out to max_dist_m [m], then
     the roadside views. A longer set draws its poses from the same generator in another order, so its
-    frames are not a superset of the default set's."""
-    config = scene_config(scene, setting)
+    frames are not a superset of the default set's. overrides: as `scene_config`'s."""
+    config = scene_config(scene, setting, overrides)
     spec, info = compose_scene(config)
     model = spec.compile()
     data = mujoco.MjData(model)

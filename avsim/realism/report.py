@@ -235,16 +235,18 @@ def cost_table(rows: list[dict]) -> list[str]:
     return lines
 
 
-def report(rows: list[dict], threshold: float, versions: Mapping[str, str] | None = None) -> str:
+def report(rows: list[dict], threshold: float, versions: Mapping[str, str] | None = None, set_flags: str = "") -> str:
     """The benchmark's Markdown report of its `rows` (one per frame and network) at detection
     `threshold`: each setting's render cost [ms], recall (Wilson 95% intervals), stop-sign AP at IoU
     0.5 and false stop signs per frame, then recall against distance per network and camera.
     versions: what drew and scored the frames (`avsim.software.software_versions`: the GL among them,
-    since a frame's pixels are those of the GL that drew it), said under the title."""
+    since a frame's pixels are those of the GL that drew it), said under the title. set_flags: the `--set` values
+    every frame was drawn with, as flags ("" for none), said under the title too."""
     n_frames = len({(r["setting"], r["town"], r["scene"], r["frame"]) for r in rows})
     ran_on = ([f"Drawn by {versions['gl']}; " + ", ".join(f"{k} {v}" for k, v in versions.items() if k != "gl") + ".", ""]
               if versions else [])
-    lines = [f"# Render realism benchmark ({n_frames} frames)", "", *ran_on,
+    given = [f"Every frame drawn with {set_flags}, beside each setting's own values.", ""] if set_flags else []
+    lines = [f"# Render realism benchmark ({n_frames} frames)", "", *ran_on, *given,
              f"Threshold {threshold}. Recall cells: signs found / signs in view (95 % Wilson interval); found = a "
              "`stop_sign` detection at or above the threshold overlapping the labelled sign with IoU >= 0.5. "
              "False stop signs: detections at or above the threshold centred on no labelled stop sign, on every frame "
