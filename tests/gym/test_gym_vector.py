@@ -47,7 +47,10 @@ def _assert_same(a, b):
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("kwargs", [pytest.param({"perception": "detector", "images": False}, marks=pytest.mark.slow),
+# Both in the slow pass (about 30 CPU-s each), with the other end-to-end checks, so the default run stays under its
+# 10 minutes; the vector env's spaces and autoreset metadata are checked in the default pass below.
+@pytest.mark.slow
+@pytest.mark.parametrize("kwargs", [{"perception": "detector", "images": False},
                                     {"perception": "oracle", "cameras": ("front", "side")}], ids=["detector", "oracle"])
 def test_the_vector_entry_point_gives_the_same_episodes_as_gymnasiums_sync_vector(kwargs):
     # An episode is 30 steps (SHORT's 1.5 s at 20 Hz): 34 steps hold the first ends, the autoreset step after
