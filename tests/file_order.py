@@ -32,6 +32,8 @@ LONGEST_FILES_S = {
     "tests/experiments/test_disk_full.py": 32,
     "tests/experiments/test_leaderboard.py": 50,  # the small board (about 49 s), moved here from the default pass
     "tests/experiments/test_ray_backend.py": 20,  # a sweep at an address: as the local-cluster sweep, estimated
+    "tests/experiments/test_sweep.py": 60,  # the failed-run and --set sweeps with the smoke sweep they use (2026-12-02)
+    "tests/gym/test_gym_vector.py": 60,  # both vector checks, moved here 2026-12-02: about 30 s each, estimated
 }
 
 
