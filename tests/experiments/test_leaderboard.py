@@ -99,9 +99,10 @@ def test_a_placeholder_adaptive_attack_runs_once(tmp_path):
 def test_every_shipped_defence_faces_an_adaptive_attack_of_its_own():
     board = load_leaderboard(DEFAULT_FILE)
     strongest = board.conditions["strongest"].overrides
+    every_run = board.runs()  # once: the board's runs are built anew at each call
     for defence in board.defences:
         assert defence.adaptive.overrides != strongest, defence.name
-        runs = [r for r in board.runs() if r.defence == defence.name and r.kind == SAFETY]
+        runs = [r for r in every_run if r.defence == defence.name and r.kind == SAFETY]
         assert len(list(unique_specs(board, runs))) == len(runs), defence.name
 
 
