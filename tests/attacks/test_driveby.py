@@ -33,7 +33,8 @@ def held_out_values(scene: EotScene, texture: torch.Tensor, attack: DriveBy, see
         return sum(float(attack.sequence_loss(texture, [group], torch.Generator().manual_seed(s))) for s in seeds) / len(seeds)
 
 
-@pytest.mark.parametrize("objective", ["score", "gate"])
+# The gate objective in the default pass, the score objective (about 14 CPU-s more) in the slow pass.
+@pytest.mark.parametrize("objective", [pytest.param("score", marks=pytest.mark.slow), "gate"])
 def test_the_drive_by_objective_falls_on_a_held_out_drive(drive_by_bank, held_out_drive_by_bank, clean_small,
                                                           detector_target, objective):
     scene = EotScene(drive_by_bank, detector_target, CLOSED_LOOP_PHOTOMETRIC)
@@ -93,8 +94,9 @@ def test_the_vote_objective_falls_on_a_held_out_drive(drive_by_bank, held_out_dr
     assert held_out_values(held_out.scene, result.texture, held_out) < held_out_values(held_out.scene, clean_small, held_out)
 
 
-# The median purifier in the default pass, JPEG's (about 17 CPU-s more) in the slow pass.
-@pytest.mark.parametrize("purify", [pytest.param("jpeg", marks=pytest.mark.slow), "median"])
+# Both purifiers in the slow pass (about 17 CPU-s each), so the default run stays under its 10 minutes.
+@pytest.mark.slow
+@pytest.mark.parametrize("purify", ["jpeg", "median"])
 def test_the_adaptive_attack_through_purification_beats_the_non_adaptive_one_behind_it(
         drive_by_bank, held_out_drive_by_bank, clean_small, detector_target, purify):
     """BPDA: the same attack and budget, optimised through the purifier or not; both scored behind

@@ -30,6 +30,7 @@ def test_a_bad_backend_is_one_line_before_any_run(backend, address, workers, exp
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.slow  # two spawned workers and four runs, about 15 CPU-s: the slow pass, with the other multi-process checks
 def test_worker_processes_give_the_records_of_one_process():
     specs = [short_run_spec("baseline", seed, policy={"name": "baseline"}) for seed in (0, 1)]
     in_process = run_batch(specs, workers=1, progress=False)
