@@ -33,9 +33,10 @@ def check_set_values(overrides: Mapping[str, Any], settings: tuple[RenderSetting
                               f"and scores them with the --networks it names, so no frame reads {section} keys; give "
                               "camera.* or scenario.* keys")
     keys = dotted_keys(overrides)
-    for key in sorted(keys & set(FRAME_SET_KEYS)):
-        raise ConfigError(f"--set {key}: every scene draw of the benchmark sets it (docs/realism.md, the frame set); "
-                          "choose the towns with --towns and the draws with --seed")
+    drawn = keys & set(FRAME_SET_KEYS)
+    if drawn:
+        raise ConfigError(f"--set {', '.join(sorted(drawn))}: every scene draw of the benchmark sets it (docs/realism.md, "
+                          "the frame set); choose the towns with --towns and the draws with --seed")
     for setting in settings:
         clash = keys & dotted_keys(setting.config_overrides())
         if clash:

@@ -225,8 +225,7 @@ class CameraRig:
         ss = self._config.seg_supersample
         width, height = self._config.width_px * ss, self._config.height_px * ss
         pose = self.pose(data, camera)
-        regions = {name: self._project_bounds(pose, camera, pts, ss) for name, (_, pts) in signs.items()
-                   if min_height_px <= 0 or self._can_reach_height(pose, camera, pts, ss, min_height_px)}
+        regions = {name: self._project_bounds(pose, camera, pts, ss, min_height_px) for name, (_, pts) in signs.items()}
         regions = {name: r for name, r in regions.items() if r is not None}
         if not regions:
             return {}
@@ -253,19 +252,12 @@ class CameraRig:
             boxes[name] = ((x0 + cols[0]) / ss, (y0 + rows[0]) / ss, (x0 + cols[-1] + 1) / ss, (y0 + rows[-1] + 1) / ss)
         return boxes
 
-    def _can_reach_height(self, pose: CameraPose, camera: str, points_m: np.ndarray, ss: int, min_height_px: float) -> bool:
-        """Whether the face outlined by `points_m` (N, 3) [world m] can give a box at least `min_height_px` tall
-        [image px]: False only where the outline's projected height, with `SMALLEST_BOX_SLACK_SEG_PX`, is shorter."""
-        cam = (np.asarray(points_m) - pose.position_m) @ pose.rotation  # MuJoCo camera frame
-        depth = -cam[:, 2]
-        if (depth <= 0).any():  # behind or straddling the camera plane: no bound from the projection
-            return True
-        v = self.intrinsics(camera).f_px * ss * cam[:, 1] / depth
-        return float(v.max() - v.min()) + SMALLEST_BOX_SLACK_SEG_PX >= min_height_px * ss
-
-    def _project_bounds(self, pose: CameraPose, camera: str, points_m: np.ndarray, ss: int) -> tuple[int, int, int, int] | None:
+    def _project_bounds(self, pose: CameraPose, camera: str, points_m: np.ndarray, ss: int,
+                        min_height_px: float = 0.0) -> tuple[int, int, int, int] | None:
         """Pixel rectangle (x0, y0, x1, y1) at seg resolution enclosing the projected points,
-        padded by 2 px and clipped to the image; None if entirely outside the view."""
+        padded by 2 px and clipped to the image; None if entirely outside the view, or if the points,
+        wholly in front of the camera, project shorter than `min_height_px` [image px] with
+        `SMALLEST_BOX_SLACK_SEG_PX` (no box of theirs could be that tall)."""
         width, height = self._config.width_px * ss, self._config.height_px * ss
         cam = (np.asarray(points_m) - pose.position_m) @ pose.rotation  # MuJoCo camera frame
         depth = -cam[:, 2]
@@ -276,6 +268,8 @@ class CameraRig:
         f = self.intrinsics(camera).f_px * ss
         u = width / 2 + f * cam[:, 0] / depth
         v = height / 2 - f * cam[:, 1] / depth
+        if float(v.max() - v.min()) + SMALLEST_BOX_SLACK_SEG_PX < min_height_px * ss:
+            return None
         x0, x1 = int(np.floor(u.min())) - 2, int(np.ceil(u.max())) + 2
         y0, y1 = int(np.floor(v.min())) - 2, int(np.ceil(v.max())) + 2
         x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, width), min(y1, height)
