@@ -23,9 +23,9 @@ from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.leaderboard_report import write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
-from avsim.experiments.resumable import RESULTS_FILE, existing_records, holds_runs, run_resumable
-from avsim.experiments.folder_setting import check_resumed_setting, record_setting
-from avsim.experiments.set_overrides import check_resumed_set, flags_of_items, record_set
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
+from avsim.experiments.folder_terms import check_resumed_terms, record_terms
+from avsim.experiments.set_overrides import flags_of_items
 from avsim.experiments.spec import check_renderer
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
@@ -43,9 +43,8 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
-    if resume and holds_runs(out / RESULTS_FILE):  # a first run under --resume has nothing to mix with
-        check_resumed_set(out, dict(board.set_items), allowed=False, other_fix="give another --out for these runs")
-        check_resumed_setting(out, board.setting, "avsim leaderboard")
+    if resume:
+        check_resumed_terms(out, board, "avsim leaderboard")
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim leaderboard {board.path} --out {out}", results_name=RESULTS_FILE):
         return _run_leaderboard_locked(board, out, quick=quick, workers=workers, resume=resume, progress=progress,
@@ -69,8 +68,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
     out.mkdir(parents=True, exist_ok=True)
     if board.path.resolve() != (out / "leaderboard.toml").resolve():
         shutil.copy2(board.path, out / "leaderboard.toml")
-    record_set(out, dict(board.set_items))
-    record_setting(out, board.setting)
+    record_terms(out, board)
     nodes = cluster_nodes(backend, address)
     records, ran = run_resumable(plan, results_path, existing, resume_command=f"{command} --resume", workers=workers,
                                  progress=progress, description="leaderboard", backend=backend, address=address,

@@ -67,11 +67,10 @@ from avsim.software import software_versions
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
-from avsim.experiments.resumable import RESULTS_FILE, existing_records, holds_runs, manifest_history, run_resumable
+from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
-from avsim.experiments.folder_setting import check_resumed_setting, record_setting
-from avsim.experiments.set_overrides import (check_resumed_set, checked_set, flags_of_items, flat_items, record_set,
-                                             refuse_layered, set_title)
+from avsim.experiments.folder_terms import check_resumed_terms, record_terms
+from avsim.experiments.set_overrides import checked_set, flags_of_items, flat_items, refuse_layered, set_title
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.spec import as_table, check_networks, check_renderer, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
@@ -306,9 +305,8 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
-    if resume and holds_runs(out / RESULTS_FILE):  # a first run under --resume has nothing to mix with
-        check_resumed_set(out, dict(sweep.set_items), allowed=False, other_fix="give another --out for these runs")
-        check_resumed_setting(out, sweep.setting, "avsim sweep")
+    if resume:
+        check_resumed_terms(out, sweep, "avsim sweep")
     # One command at a time in `out`; a folder made here and left without a record is removed.
     with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
         return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
@@ -332,8 +330,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     out.mkdir(parents=True, exist_ok=True)
     if sweep.path.resolve() != (out / "sweep.toml").resolve():
         shutil.copy2(sweep.path, out / "sweep.toml")
-    record_set(out, dict(sweep.set_items))
-    record_setting(out, sweep.setting)
+    record_terms(out, sweep)
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     # --setting and --set, which the resume command and the manifest's command repeat.
     file_flags = f" --setting {sweep.setting}" if sweep.setting != BASELINE else ""

@@ -1,0 +1,61 @@
+"""A sweep's or leaderboard's folder keeps its --setting and --set values together, and a resume that holds runs
+is refused under other ones, while a folder without runs is not."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import pytest
+
+from avsim.errors import ConfigError
+from avsim.experiments.folder_setting import SETTING_FILE
+from avsim.experiments.folder_terms import check_resumed_terms, record_terms
+from avsim.experiments.resumable import RESULTS_FILE
+from avsim.experiments.set_overrides import SET_FILE
+
+
+@dataclass(frozen=True)
+class Terms:
+    setting: str = "baseline"
+    set_items: tuple[tuple[str, Any], ...] = ()
+
+
+MADE = Terms("sheeting", (("scenario.speed_kmh", 60.0),))
+
+
+def _folder_with_runs(tmp_path):
+    record_terms(tmp_path, MADE)
+    (tmp_path / RESULTS_FILE).write_text('{"cell": "a"}\n')
+    return tmp_path
+
+
+def test_both_terms_are_kept_and_the_same_terms_resume(tmp_path):
+    folder = _folder_with_runs(tmp_path)
+    assert (folder / SETTING_FILE).is_file() and (folder / SET_FILE).is_file()
+    check_resumed_terms(folder, MADE, "avsim sweep")
+
+
+@pytest.mark.parametrize("other, named", [
+    (Terms("sheeting"), "given --set scenario.speed_kmh=60.0 and this command no --set"),
+    (Terms("baseline", MADE.set_items), "--setting sheeting and this avsim sweep under --setting baseline"),
+])
+def test_a_resume_under_other_terms_is_refused_in_one_line(tmp_path, other, named):
+    folder = _folder_with_runs(tmp_path)
+    with pytest.raises(ConfigError, match=named) as caught:
+        check_resumed_terms(folder, other, "avsim sweep")
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("results", [None, ""], ids=["no results file", "an empty one"])
+def test_a_folder_without_runs_is_not_refused(tmp_path, results):
+    record_terms(tmp_path, MADE)
+    if results is not None:
+        (tmp_path / RESULTS_FILE).write_text(results)
+    check_resumed_terms(tmp_path, Terms(), "avsim leaderboard")
+
+
+def test_the_default_terms_leave_no_files(tmp_path):
+    record_terms(tmp_path, MADE)
+    record_terms(tmp_path, Terms())
+    assert not (tmp_path / SETTING_FILE).exists() and not (tmp_path / SET_FILE).exists()
