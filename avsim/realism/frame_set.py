@@ -96,16 +96,18 @@ def scene_draws(towns: tuple[str, ...], draws_per_town: int, seed: int) -> list[
     return scenes
 
 
+# The scenario keys every scene draw sets itself (`_scene_keys`; tests/realism/test_frame_set.py holds the two
+# equal): a `--set` of one is refused (`avsim.realism.set_values`).
+FRAME_SET_KEYS = ("scenario.town", "scenario.placement", "scenario.sign", "scenario.seed", "scenario.sun_elevation_deg",
+                  "scenario.sun_azimuth_deg", "scenario.sun_intensity")
+
+
 def _scene_keys(scene: SceneDraw) -> dict[str, object]:
     """The scenario keys a scene draw sets (its town, placement, clean sign, seed and sun)."""
     # The scene's seed draws its clouds, where the setting has them; nothing else in a scene reads it.
     return {"town": scene.town, "placement": scene.placement, "sign": "clean", "seed": scene.seed,
             "sun_elevation_deg": scene.sun_elevation_deg, "sun_azimuth_deg": scene.sun_azimuth_deg,
             "sun_intensity": scene.sun_intensity}
-
-
-# The dotted keys every scene draw sets itself: a `--set` of one is refused (`avsim.realism.set_values`).
-FRAME_SET_KEYS = tuple(f"scenario.{key}" for key in _scene_keys(SceneDraw("town07", 0, "standard", 0, 0.0, 0.0, 0.0)))
 
 
 def scene_config(scene: SceneDraw, setting: RenderSetting, overrides: Mapping[str, Any] | None = None) -> SimConfig:

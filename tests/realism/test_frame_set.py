@@ -3,8 +3,8 @@
 import tomllib
 from pathlib import Path
 
-from avsim.realism.frame_set import (BIN_EDGES_M, EXPERIMENT_LIGHTING, PLACEMENT_ORDER, SENSOR_NOISE_STD_LEVELS,
-                                     bin_edges_m, scene_config, scene_draws)
+from avsim.realism.frame_set import (BIN_EDGES_M, EXPERIMENT_LIGHTING, FRAME_SET_KEYS, PLACEMENT_ORDER,
+                                     SENSOR_NOISE_STD_LEVELS, _scene_keys, bin_edges_m, scene_config, scene_draws)
 from avsim.realism.settings import SETTINGS
 from avsim.world.towns import PLACEMENTS
 
@@ -36,6 +36,11 @@ def test_a_setting_changes_the_camera_and_nothing_of_the_scene():
     assert baseline.scenario == photo.scenario and baseline.camera != photo.camera
     assert (photo.camera.supersample, photo.camera.jpeg_quality) == (2, 90)
     assert baseline.scenario.town == "town03" and baseline.scenario.sign == "clean"
+
+
+def test_the_keys_a_realism_set_may_not_give_are_those_a_scene_draw_sets():
+    draw = scene_draws(("town10",), 1, seed=0)[0]
+    assert sorted(f"scenario.{key}" for key in _scene_keys(draw)) == sorted(FRAME_SET_KEYS)
 
 
 def test_each_scene_draw_has_clouds_of_its_own():
