@@ -74,6 +74,8 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     from avsim.experiments.attacks.drive_by_report import plot_confidence_by_detector
     from avsim.experiments.attacks.texture_eval import evaluate_texture, fig3_grid
     from avsim.experiments.attacks.texture_eval_report import write_attack_report
+    from avsim.experiments.attacks.eval_set_values import ATTACK_EVAL_SET
+    from avsim.experiments.set_overrides import set_flags
     from avsim.config import SimConfig, with_overrides
     from avsim.world.scene import resolve_sign_texture
     from avsim.world.textures import TEXTURE_DIR, load_texture_png
@@ -88,7 +90,9 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     for placement in (*placements, args.drive_placement):
         PLACEMENTS.get(placement)
     setting = SETTINGS[args.setting]
-    base = with_overrides(SimConfig(), setting.config_overrides())
+    overrides = parse_set(args.set)
+    ATTACK_EVAL_SET.check(overrides, (setting,))
+    base = with_overrides(with_overrides(SimConfig(), setting.config_overrides()), overrides)
     if args.weights:
         if "detector" not in detectors:
             raise ConfigError("--weights sets the own detector's weights; add detector to --detectors, or drop --weights")
@@ -109,7 +113,8 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
         fig3 = fig3_grid(signs, out / "fig3_front_30m.png", town=args.town, base=base, detector=detectors[0])
         figure = plot_confidence_by_detector(drive_bys, out / "confidence_by_detector.png") if drive_bys else None
         path = write_attack_report(reports, args.town, threshold, TEXTURE_DIR, out, fig3, drive_bys, figure,
-                                   setting=setting, perception=detectors[0], weights=args.weights)
+                                   setting=setting, perception=detectors[0], weights=args.weights,
+                                   set_flags=set_flags(overrides))
     print(path.read_text())
     print(f"wrote {path}")
     return 0
@@ -191,6 +196,9 @@ def add_commands(sub) -> None:
     ev.add_argument("--setting", choices=tuple(SETTINGS), default="baseline", metavar="NAME",
                     help="render setting of every frame, one of avsim realism's (docs/realism.md): "
                          f"{', '.join(SETTINGS)} (default baseline, the default renders)")
+    ev.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a camera, scenario or perception value under every frame (repeatable), e.g. "
+                         "scenario.fog_end_m=300; keys the evaluation sets itself are refused (docs/attacks.md)")
     add_input_argument(ev, "--weights", default="",
                        help="the own detector's weights for --detectors detector (default: the shipped "
                             "models/sign_detector.pt), e.g. models/sign_detector_scenes.pt, retrained on the full scene")

@@ -30,11 +30,12 @@ def test_the_frame_set_keys_are_what_a_scene_draw_sets():
 
 
 @pytest.mark.parametrize("item, named", [
-    ("perception.sensor_noise_std=3", "no frame reads perception keys"),
-    ("policy.conf_threshold=0.6", "no frame reads policy keys"),
-    ("scenario.town=town07", "every scene draw of the benchmark sets it"),
-    ("scenario.sun_intensity=0.5", "every scene draw of the benchmark sets it"),
+    ("perception.sensor_noise_std=3", "reads camera and scenario keys only"),
+    ("policy.conf_threshold=0.6", "reads camera and scenario keys only"),
+    ("scenario.town=town07", "sets it itself; every scene draw sets it"),
+    ("scenario.sun_intensity=0.5", "sets it itself; every scene draw sets it"),
     ("camera.supersample=3", "--settings photo sets it too"),
+    ("camera=3", "a key names its section and the key"),
     ("camera.fovy_deg=-5", "--set under --settings baseline"),
     ("camera.no_such_key=1", "--set under --settings baseline"),
 ])

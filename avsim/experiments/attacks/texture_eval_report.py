@@ -59,11 +59,12 @@ def _perception_label(perception: str, weights: str) -> str:
 def write_attack_report(reports: list[TextureReport], town: str, threshold: float, texture_dir: Path,
                         out_dir: Path, fig3_path: Path, drive_bys: dict | None = None,
                         detectors_figure: Path | None = None, setting: RenderSetting = SETTINGS["baseline"],
-                        perception: str = "detector", weights: str = "") -> Path:
+                        perception: str = "detector", weights: str = "", set_flags: str = "") -> Path:
     """report.md: the fixed-distance tables of `reports` and, with `drive_bys` ((sign, detector)
     -> `DriveBys`), the per-frame drive-by metrics and the transfer matrix; `setting`: the render
     setting every frame was drawn under; `perception`: the kind the fixed-distance tables were
-    measured under; `weights`: the own detector's weights file ("" for the shipped ones)."""
+    measured under; `weights`: the own detector's weights file ("" for the shipped ones); `set_flags`: the --set
+    values every frame was drawn with, as flags ("" for none)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     placements = list(reports[0].conf_at_m["front"])
     plots = [plot_drive_by(reports, p, out_dir / f"drive_by_{p}.png") for p in placements]
@@ -71,6 +72,7 @@ def write_attack_report(reports: list[TextureReport], town: str, threshold: floa
              f"{_perception_label(perception, weights)} on full 640x480 frames; a detection counts if it overlaps the sign's "
              f"ground-truth box (IoU >= 0.3). Threshold for detection rate and first detection: {threshold}.", "",
              f"Render setting: `{setting.name}` ({setting.describe()}): {setting.why}.", "",
+             *([f"Every frame drawn with {set_flags}, beside the setting's own values.", ""] if set_flags else []),
              "| sign | SSIM | L-inf | mean conf front | mean conf side | " + " | ".join(f"first det. front {p} [m]" for p in placements) + " |",
              "|---|---|---|---|---|" + "---|" * len(placements)]
     for r in reports:
