@@ -14,10 +14,10 @@ xdist's, back to back on the same quiet machine).
 """
 
 LONGEST_FILES_S = {
-    "tests/perception/detector/test_perception.py": 450,  # 583 measured, before its fast-path cells started at 150 m
-    "tests/test_lockstep.py": 258,
-    "tests/experiments/test_study_outcomes.py": 241,
-    "tests/control/test_defences_in_the_loop.py": 192,
+    "tests/perception/detector/test_perception.py": 470,  # 700 measured (AVX2, 2026-12-02) before its policy runs started at 150 m
+    "tests/test_lockstep.py": 320,  # 420 measured (AVX2, 2026-12-02) before the COCO and ensemble batches went to two cars
+    "tests/experiments/test_study_outcomes.py": 325,  # AVX2, 2026-12-02
+    "tests/control/test_defences_in_the_loop.py": 287,  # AVX2, 2026-12-02
     "tests/test_loop.py": 176,
     "tests/perception/coco/test_coco_reference.py": 104,
     "tests/experiments/test_sweep_backends.py": 93,

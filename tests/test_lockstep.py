@@ -50,10 +50,14 @@ def test_a_mixed_batch_of_eight_gives_each_run_its_lone_result_bit_for_bit(perce
     assert any(output.result.to_json_dict()["first_detection_dist_m"] is not None for output in together[:-1])
 
 
+# Two cars a kind: Town07 with one camera and Town10 with both, under sensor noise. Neither kind has a shared network
+# call (`detect_many`): a batch runs their frames one after another, so what a batch could change here is which car's
+# frame and state go where, which two cars show; the textures, placements and the oracle car of the mixed eight are
+# the own detector's test above. Four cars a kind took 124 and 138 CPU-s on a 2-core AVX2 machine (fp32).
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["coco", "ensemble"])
 def test_the_real_detectors_batch_without_changing_a_run(kind):
-    configs = _mixed_cells({"kind": kind})[:4]
+    configs = _mixed_cells({"kind": kind})[:2]
     alone = [run_config(config)[0] for config in configs]
     assert [o.result.to_json_dict() for o in run_lockstep(configs)] == [r.to_json_dict() for r in alone]
 
