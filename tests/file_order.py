@@ -18,7 +18,7 @@ LONGEST_FILES_S = {
     "tests/test_lockstep.py": 320,  # 420 measured (AVX2, 2026-12-02) before the COCO and ensemble batches went to two cars
     "tests/experiments/test_study_outcomes.py": 325,  # AVX2, 2026-12-02
     "tests/control/test_defences_in_the_loop.py": 287,  # AVX2, 2026-12-02
-    "tests/test_loop.py": 176,
+    "tests/test_loop.py": 90,  # 177 measured (AVX2, 2026-12-02) before its two-camera runs started at 150 m
     "tests/perception/coco/test_coco_reference.py": 104,
     "tests/experiments/test_sweep_backends.py": 93,
     "tests/cli/test_cli_signals.py": 140,  # 88 measured, with Ctrl-C during reproduce (about 54 s) since moved here

@@ -13,7 +13,8 @@ from avsim.world.towns import PLACEMENTS, TOWNS
 from helpers import make_config
 
 CELLS = [(town, placement) for town in TOWNS.names() for placement in PLACEMENTS.names()]
-PERCEIVING_POLICIES = ["baseline", "adjusted", "side_camera", "combined"]
+ONE_CAMERA_POLICIES = ["baseline", "adjusted"]
+TWO_CAMERA_POLICIES = ["side_camera", "combined"]
 
 
 @pytest.mark.parametrize("town,placement", CELLS)
@@ -23,16 +24,30 @@ def test_autopilot_stops_within_1_5_m_before_the_stop_line(study_run, town, plac
     assert 0.0 <= result.margin_m <= 1.5
 
 
-# The two-camera policies render twice a step (7-9 s a cell): they run in `make test`'s slow pass, so the
-# default run stays under its 10 minutes.
-@pytest.mark.parametrize("policy", [policy if policy in ("baseline", "adjusted") else pytest.param(policy, marks=pytest.mark.slow)
-                                    for policy in PERCEIVING_POLICIES])
-@pytest.mark.parametrize("town,placement", CELLS)
-def test_oracle_policies_stop_before_the_sign(study_run, town, placement, policy):
-    result = study_run(town, placement, policy)
+def _assert_stopped_before_the_sign_at_85_kmh(result, policy: str) -> None:
     assert result.sign_margin_m > 0, f"{policy} ran {-result.sign_margin_m:.1f} m past the sign"
     assert result.time_to_stop_s is not None
     assert result.peak_speed_mps * 3.6 == pytest.approx(85.0, abs=1.0)
+
+
+@pytest.mark.parametrize("policy", ONE_CAMERA_POLICIES)
+@pytest.mark.parametrize("town,placement", CELLS)
+def test_oracle_policies_stop_before_the_sign(study_run, town, placement, policy):
+    _assert_stopped_before_the_sign_at_85_kmh(study_run(town, placement, policy), policy)
+
+
+# The two-camera policies render twice a step, so they run in `make test`'s slow pass, and from cruise speed 150 m
+# out rather than from rest 230 m out: the oracle reports a sign from 100 m, so each run still holds the whole
+# approach, at about half the cost (Town10 about 15 CPU-s a run from rest on a 2-core AVX2 machine).
+@pytest.mark.slow
+@pytest.mark.parametrize("policy", TWO_CAMERA_POLICIES)
+@pytest.mark.parametrize("town,placement", CELLS)
+def test_two_camera_oracle_policies_stop_before_the_sign_from_cruise(town, placement, policy):
+    config = make_config(scenario={"town": town, "placement": placement, "start_dist_m": 150.0, "start_speed_kmh": 85.0},
+                         policy={"name": policy})
+    result = run_config(config)[0]
+    _assert_stopped_before_the_sign_at_85_kmh(result, policy)
+    assert result.first_detection_dist_m < 140.0  # the sign was first seen on the way
 
 
 @pytest.mark.parametrize("town,placement", CELLS)
