@@ -2,7 +2,7 @@
 
 The evaluation reads the camera, the scenario's world (materials, fog, a sign's size), the perception's settings
 (noise aside) and two policy values: the threshold its detection rates count at and the braking gate its drive-bys
-are gated by. It sets some keys itself, so a `--set` of one of these is refused (`avsim.set_scope`):
+are gated by. It sets some keys itself, so a `--set` of one of these is refused (`avsim.realism.set_scope`):
 - the town, placements and signs, chosen by `--town`, `--placements`, `--drive-placement` and `--signs`;
 - the perception kind, by `--detectors`, and its weights, by `--weights`;
 - every score down to 0.05 (`min_confidence`), so that the curves show a disappearing sign's fall;
@@ -14,7 +14,7 @@ are gated by. It sets some keys itself, so a `--set` of one of these is refused 
 from __future__ import annotations
 
 from avsim.attacks.view_bank import CLOSED_LOOP_LIGHTING
-from avsim.set_scope import SetScope
+from avsim.realism.set_scope import SetScope
 
 ATTACK_EVAL_SET = SetScope(
     reads=("camera.", "scenario.", "perception.", "policy.conf_threshold", "policy.trigger_dist_m"),
