@@ -5,7 +5,8 @@ pass that put the one-test files (the TF.js reference, then about 220 s) last, a
 about two minutes at the end. `make test` passes --no-loadscope-reorder to the slow pass, so its files go
 out in the order below: the longest first (longest-processing-time-first scheduling), then every other file
 as collected. The seconds are each file's test time in the slow pass (the wall column of `--cpu-durations`,
-on a quiet 2-core machine, 2026-11-27); they decide only the order, never what runs. A file left out of the
+on a quiet 2-core machine, 2026-11-27; the five largest re-measured on the 2-core AVX2 machine, 2026-12-02);
+they decide only the order, never what runs. A file left out of the
 table, or one that grows, costs time, not correctness.
 
 The default pass keeps xdist's order: it ends within about 20 s of even either way, and its longest files,
@@ -14,14 +15,14 @@ xdist's, back to back on the same quiet machine).
 """
 
 LONGEST_FILES_S = {
-    "tests/perception/detector/test_perception.py": 470,  # 700 measured (AVX2, 2026-12-02) before its policy runs started at 150 m
-    "tests/test_lockstep.py": 320,  # 420 measured (AVX2, 2026-12-02) before the COCO and ensemble batches went to two cars
-    "tests/experiments/test_study_outcomes.py": 325,  # AVX2, 2026-12-02
-    "tests/control/test_defences_in_the_loop.py": 287,  # AVX2, 2026-12-02
-    "tests/test_loop.py": 90,  # 177 measured (AVX2, 2026-12-02) before its two-camera runs started at 150 m
+    "tests/perception/detector/test_perception.py": 403,  # 700 (AVX2, 2026-12-02) before its policy runs started at 150 m
+    "tests/test_lockstep.py": 217,  # 420 (AVX2, 2026-12-02) before the COCO and ensemble batches went to two cars
+    "tests/experiments/test_study_outcomes.py": 313,
+    "tests/control/test_defences_in_the_loop.py": 236,
+    "tests/test_loop.py": 83,  # 177 (AVX2, 2026-12-02) before its two-camera runs started at 150 m
     "tests/perception/coco/test_coco_reference.py": 104,
     "tests/experiments/test_sweep_backends.py": 93,
-    "tests/cli/test_cli_signals.py": 140,  # 88 measured, with Ctrl-C during reproduce (about 54 s) since moved here
+    "tests/cli/test_cli_signals.py": 168,  # AVX2, 2026-12-02, with Ctrl-C during reproduce
     "tests/experiments/attacks/test_texture_eval.py": 64,
     "tests/test_termination.py": 64,
     "tests/experiments/test_sweep_resume.py": 48,
