@@ -76,7 +76,7 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     from avsim.experiments.attacks.texture_eval_report import write_attack_report
     from avsim.experiments.attacks.eval_set_values import ATTACK_EVAL_SET
     from avsim.experiments.set_overrides import set_flags
-    from avsim.config import SimConfig, with_overrides
+    from avsim.config import with_overrides
     from avsim.world.scene import resolve_sign_texture
     from avsim.world.textures import TEXTURE_DIR, load_texture_png
 
@@ -92,7 +92,7 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     setting = SETTINGS[args.setting]
     overrides = parse_set(args.set)
     ATTACK_EVAL_SET.check(overrides, (setting,))
-    base = with_overrides(with_overrides(SimConfig(), setting.config_overrides()), overrides)
+    base = setting.config(overrides)
     if args.weights:
         if "detector" not in detectors:
             raise ConfigError("--weights sets the own detector's weights; add detector to --detectors, or drop --weights")

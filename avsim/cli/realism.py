@@ -37,7 +37,7 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     from avsim.cli.overrides import parse_set
     from avsim.experiments.set_overrides import set_flags
     from avsim.realism.report import report, write_figure
-    from avsim.realism.set_values import check_set_values
+    from avsim.realism.set_values import REALISM_SET
     from avsim.software import software_versions
     from avsim.world.towns import TOWNS
 
@@ -50,7 +50,7 @@ def _cmd_realism(args: argparse.Namespace) -> int:
                           "that folder to run it again")
     settings = tuple(SETTINGS[name] for name in args.settings)
     overrides = parse_set(args.set)
-    check_set_values(overrides, settings)
+    REALISM_SET.check(overrides, settings)
     plan = BenchmarkPlan(settings, tuple(towns), args.frames, tuple(args.networks), args.threshold, args.seed,
                          args.max_dist_m, overrides)
     rows = run_benchmark(plan, args.workers)

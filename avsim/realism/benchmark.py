@@ -14,7 +14,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from avsim.config import SimConfig, with_overrides
 from avsim.realism.frame_set import DEFAULT_MAX_DIST_M, SceneDraw, render_scene, scene_draws
 from avsim.realism.scoring import build_networks, score_frame
 from avsim.realism.settings import RenderSetting
@@ -69,8 +68,7 @@ def run_benchmark(plan: BenchmarkPlan, workers: int) -> list[dict]:
 
     check_offscreen_rendering()  # no EGL: one line, before the progress bar and the workers
     for setting in plan.settings:  # so is a GL that filters less than a setting asks
-        config = with_overrides(with_overrides(SimConfig(), setting.config_overrides()), plan.overrides)
-        check_texture_anisotropy(config.camera.texture_anisotropy)
+        check_texture_anisotropy(setting.config(plan.overrides).camera.texture_anisotropy)
     jobs = [(setting, scene, plan.threshold, plan.max_dist_m, plan.overrides) for setting, scene in plan.jobs()]
     rows: list[dict] = []
     # Built here first, whatever the workers: missing or corrupt weights are refused in one line

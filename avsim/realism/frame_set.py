@@ -114,10 +114,7 @@ def scene_config(scene: SceneDraw, setting: RenderSetting, overrides: Mapping[st
     """The `SimConfig` that renders `scene` (its town, placement, clean sign and sun) under the
     render `setting`'s overrides (camera, scenario materials, ...), and then `overrides` (`avsim realism --set`:
     nested, camera and scenario keys none of the others sets)."""
-    config = with_overrides(SimConfig(), setting.config_overrides())
-    if overrides:
-        config = with_overrides(config, overrides)
-    return with_overrides(config, {"scenario": _scene_keys(scene)})
+    return with_overrides(setting.config(overrides or {}), {"scenario": _scene_keys(scene)})
 
 
 def render_scene(scene: SceneDraw, setting: RenderSetting, max_dist_m: int = DEFAULT_MAX_DIST_M,

@@ -16,7 +16,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from avsim.config import SimConfig, with_overrides
 from avsim.config_owners import dotted_keys
 from avsim.errors import ConfigError
 from avsim.realism.settings import RenderSetting
@@ -62,6 +61,6 @@ class SetScope:
                                   f"the --set would undo part of that setting; drop it from {self.setting_flag} or "
                                   "the --set")
             try:
-                with_overrides(with_overrides(SimConfig(), setting.config_overrides()), overrides)
+                setting.config(overrides)
             except ConfigError as exc:
                 raise ConfigError(f"--set under {self.setting_flag} {setting.name}: {exc}") from None

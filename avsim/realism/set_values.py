@@ -13,11 +13,7 @@ sensor's noise, a field of view, a material, fog. What is refused, in one line b
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 from avsim.realism.frame_set import FRAME_SET_KEYS
-from avsim.realism.settings import RenderSetting
 from avsim.realism.set_scope import SetScope
 
 REALISM_SET = SetScope(reads=("camera.", "scenario."), reads_in_words="camera and scenario keys",
@@ -25,8 +21,3 @@ REALISM_SET = SetScope(reads=("camera.", "scenario."), reads_in_words="camera an
                        own_fix="every scene draw sets it (docs/realism.md, the frame set); choose the towns with "
                                "--towns and the draws with --seed")
 
-
-def check_set_values(overrides: Mapping[str, Any], settings: tuple[RenderSetting, ...]) -> None:
-    """A one-line ConfigError where the nested `overrides` (`avsim.cli.overrides.parse_set`) give a key the benchmark
-    does not read, one its frame set or one of `settings` sets, or a bad value (module docstring)."""
-    REALISM_SET.check(overrides, settings)

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Mapping
+from typing import Any, Mapping
+
+from avsim.config import SimConfig, with_overrides
 
 
 
@@ -24,6 +26,10 @@ class RenderSetting:
     def config_overrides(self) -> dict[str, dict[str, object]]:
         """The overrides as fresh nested dicts, as `avsim.config.with_overrides` takes them."""
         return {section: dict(values) for section, values in self.overrides.items()}
+
+    def config(self, overrides: Mapping[str, Any] = MappingProxyType({})) -> SimConfig:
+        """The default config under this setting, then `overrides` (nested, as a command's `--set` gives them)."""
+        return with_overrides(with_overrides(SimConfig(), self.config_overrides()), overrides)
 
     def describe(self) -> str:
         """"camera.supersample=2, ..." or "defaults"."""

@@ -7,14 +7,14 @@ from avsim.cli.overrides import parse_set
 from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
 from avsim.realism.frame_set import FRAME_SET_KEYS, scene_config, scene_draws
-from avsim.realism.set_values import check_set_values
+from avsim.realism.set_values import REALISM_SET
 from avsim.realism.settings import SETTINGS
 
 
 def test_a_set_value_reaches_every_frame_under_each_setting_and_leaves_the_scene_draw_alone():
     draw = scene_draws(("town10",), 1, seed=0)[0]
     overrides = parse_set(["camera.fovy_deg=40", "scenario.fog_end_m=300"])
-    check_set_values(overrides, (SETTINGS["baseline"], SETTINGS["photo"]))
+    REALISM_SET.check(overrides, (SETTINGS["baseline"], SETTINGS["photo"]))
     for name in ("baseline", "photo"):
         plain, given = scene_config(draw, SETTINGS[name]), scene_config(draw, SETTINGS[name], overrides)
         assert (given.camera.fovy_deg, given.scenario.fog_end_m) == (40.0, 300.0)
@@ -41,5 +41,5 @@ def test_the_frame_set_keys_are_what_a_scene_draw_sets():
 ])
 def test_what_no_frame_reads_what_the_draws_or_a_setting_set_and_bad_values_are_refused(item, named):
     with pytest.raises(ConfigError, match=named) as caught:
-        check_set_values(parse_set([item]), (SETTINGS["baseline"], SETTINGS["photo"]))
+        REALISM_SET.check(parse_set([item]), (SETTINGS["baseline"], SETTINGS["photo"]))
     assert "\n" not in str(caught.value)
