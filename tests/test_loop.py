@@ -10,7 +10,7 @@ from avsim.errors import PhysicsError
 from avsim.loop import ClosedLoop
 from avsim.runner import run_config
 from avsim.world.towns import PLACEMENTS, TOWNS
-from helpers import make_config
+from helpers import CRUISE_START, make_config
 
 CELLS = [(town, placement) for town in TOWNS.names() for placement in PLACEMENTS.names()]
 ONE_CAMERA_POLICIES = ["baseline", "adjusted"]
@@ -36,18 +36,16 @@ def test_oracle_policies_stop_before_the_sign(study_run, town, placement, policy
     _assert_stopped_before_the_sign_at_85_kmh(study_run(town, placement, policy), policy)
 
 
-# The two-camera policies render twice a step, so they run in `make test`'s slow pass, and from cruise speed 150 m
-# out rather than from rest 230 m out: the oracle reports a sign from 100 m, so each run still holds the whole
-# approach, at about half the cost (Town10 about 15 CPU-s a run from rest on a 2-core AVX2 machine).
+# The two-camera policies render twice a step, so they run in `make test`'s slow pass, and from CRUISE_START rather
+# than the study's start (Town10 about 15 CPU-s a run from rest on a 2-core AVX2 machine, about half that from it).
 @pytest.mark.slow
 @pytest.mark.parametrize("policy", TWO_CAMERA_POLICIES)
 @pytest.mark.parametrize("town,placement", CELLS)
 def test_two_camera_oracle_policies_stop_before_the_sign_from_cruise(town, placement, policy):
-    config = make_config(scenario={"town": town, "placement": placement, "start_dist_m": 150.0, "start_speed_kmh": 85.0},
-                         policy={"name": policy})
+    config = make_config(scenario={"town": town, "placement": placement, **CRUISE_START}, policy={"name": policy})
     result = run_config(config)[0]
     _assert_stopped_before_the_sign_at_85_kmh(result, policy)
-    assert result.first_detection_dist_m < 140.0  # the sign was first seen on the way
+    assert result.first_detection_dist_m < CRUISE_START["start_dist_m"] - 10.0  # the sign was first seen on the way
 
 
 @pytest.mark.parametrize("town,placement", CELLS)

@@ -10,7 +10,7 @@ from avsim.control.policies import POLICIES, STOP_CLASS
 from avsim.loop import ClosedLoop
 from avsim.runner import run_recorded
 from avsim.vehicle.brake_test import full_brake_decel_mps2
-from helpers import make_config
+from helpers import CRUISE_START, make_config
 
 TRIGGER_M = 40.0
 STOP_LINE_BEFORE_SIGN_M = 1.0
@@ -83,11 +83,8 @@ def test_study_stack_cannot_stop_before_a_clean_sign_at_85_kmh_and_the_physics_s
     assert not result.stopped_before_sign
 
 
-SHORT_RUN = {"start_speed_kmh": 85.0, "start_dist_m": 150.0}
-
-
 def _records(policy: str, map_offset_m: float):
-    config = make_config(scenario={**SHORT_RUN, "map_stop_line_offset_m": map_offset_m}, policy={"name": policy})
+    config = make_config(scenario={**CRUISE_START, "map_stop_line_offset_m": map_offset_m}, policy={"name": policy})
     output = run_recorded(config)
     return [(r.brake, r.x_m, r.y_m, r.speed_mps) for r in output.records], output.result
 

@@ -13,6 +13,7 @@ from avsim.perception.factory import build_perception
 from avsim.runner import run_config
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.towns import PLACEMENTS, TOWNS
+from helpers import CRUISE_START
 
 CELLS = [(town, placement) for town in TOWNS.names() for placement in PLACEMENTS.names()]
 
@@ -58,11 +59,8 @@ def test_missing_weights_say_how_to_train_them(tmp_path, capsys):
     assert code == 2 and "missing" in err and "avsim detector train" in err
 
 
-# The closed-loop runs below start at cruise speed 150 m out (CRUISE_START), not from rest 230 m out as the study
-# does: the detector first sees the clean sign 86-122 m out, so each run still holds the whole approach from before
-# the first box to the stop, at about half the study start's cost (a one-camera run 6-10 CPU-s against 12-15 on a
-# 2-core AVX2 machine). The study's own starts are pinned by tests/experiments/test_study_outcomes.py.
-CRUISE_START = {"start_dist_m": 150.0, "start_speed_kmh": 85.0}
+# The closed-loop runs below start from CRUISE_START, not the study's start (a one-camera run 6-10 CPU-s against
+# 12-15 on a 2-core AVX2 machine). The study's own starts are pinned by tests/experiments/test_study_outcomes.py.
 
 
 @functools.lru_cache(maxsize=None)
@@ -124,7 +122,7 @@ def test_two_cameras_at_once_detect_exactly_what_one_after_the_other_does():
 
 # Each town and each placement once with the clean sign, and each town under the attack. The whole grid (nine clean
 # cells) passed in every run until 2026-11-26; it was cut to these to keep `make test` inside issue 25's 30 minutes.
-# Each run starts at cruise speed 150 m out (CRUISE_START, above), so both paths still compare every frame from
+# Each run starts at cruise speed 150 m out (CRUISE_START, tests/helpers.py), so both paths still compare every frame from
 # before the first box to the stop, and a cell costs about half the study start's 40-50 CPU-s.
 FAST_PATH_CELLS = ([("clean", "town07", "far"), ("clean", "town03", "near"), ("clean", "town10", "standard")]
                    + [("yang", town, "standard") for town in TOWNS.names()])
