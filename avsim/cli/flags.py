@@ -56,12 +56,9 @@ def flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
 def config_from_args(args: argparse.Namespace, setting: RenderSetting | None = None):
     """The `SimConfig` the scenario flags and --set describe, over the defaults and over `setting`
     (`avsim run --setting`); a key both set is a one-line ConfigError (`refuse_setting_clash`)."""
-    from avsim.config import SimConfig, with_overrides
-
     overrides = flag_overrides(args)
-    setting_overrides = {} if setting is None else setting.config_overrides()
     refuse_setting_clash(setting, overrides)
-    return with_overrides(with_overrides(SimConfig(), setting_overrides), overrides)
+    return (setting or SETTINGS[BASELINE]).config(overrides)
 
 
 def refuse_setting_clash(setting: RenderSetting | None, overrides: dict[str, Any]) -> None:
@@ -69,7 +66,7 @@ def refuse_setting_clash(setting: RenderSetting | None, overrides: dict[str, Any
     the flags would quietly undo part of the setting the user asked for."""
     if setting is None:
         return
-    clash = dotted_keys(setting.config_overrides()) & dotted_keys(overrides)
+    clash = setting.keys & dotted_keys(overrides)
     if clash:
         raise ConfigError(f"{', '.join(sorted(clash))} is set by --setting {setting.name} and again by the flags; "
                           "leave out one of them")

@@ -17,7 +17,6 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from avsim.config import with_overrides
-from avsim.config_owners import dotted_keys
 from avsim.errors import ConfigError
 from avsim.experiments.leaderboard import Leaderboard
 from avsim.experiments.spec import Cell, Experiment
@@ -29,8 +28,7 @@ def under_setting(experiment: Experiment, setting: RenderSetting) -> Experiment:
     """`experiment` with `setting`'s overrides in every cell, its title naming the setting; the
     experiment itself for a setting that changes nothing (`baseline`). ConfigError, naming the key and
     the cell, where the file sets a key the setting sets."""
-    overrides = setting.config_overrides()
-    setting_keys = dotted_keys(overrides)
+    overrides, setting_keys = setting.config_overrides(), setting.keys
     if not setting_keys:
         return experiment
     _refuse_clash(experiment.path, "its [vary]", {key for key, _, _ in experiment.vary}, setting)
@@ -65,13 +63,12 @@ def _base_under_setting(plan_file: Leaderboard | Sweep, layers: list[tuple[str, 
                         setting: RenderSetting) -> Leaderboard | Sweep:
     """A leaderboard or sweep (`path`, `title`, `base`, `setting`) with `setting`'s overrides in its base
     config, after refusing any of `layers` ((where, dotted keys it sets)) that sets one of them."""
-    overrides = setting.config_overrides()
-    if not dotted_keys(overrides):
+    if not setting.keys:
         return plan_file
     for where, keys in layers:
         _refuse_clash(plan_file.path, where, keys, setting)
     try:
-        base = with_overrides(plan_file.base, overrides)
+        base = with_overrides(plan_file.base, setting.config_overrides())
     except ConfigError as exc:
         raise ConfigError(f"{plan_file.path} under --setting {setting.name}: {exc}") from None
     return dataclasses.replace(plan_file, base=base, setting=setting.name,
@@ -80,7 +77,7 @@ def _base_under_setting(plan_file: Leaderboard | Sweep, layers: list[tuple[str, 
 
 def _refuse_clash(path: Path, where: str, keys_set: Iterable[str], setting: RenderSetting) -> None:
     """A one-line ConfigError where `where` in the file at `path` sets one of `setting`'s keys."""
-    clash = dotted_keys(setting.config_overrides()) & frozenset(keys_set)
+    clash = setting.keys & frozenset(keys_set)
     if clash:
         raise ConfigError(f"{path}: {where} sets {', '.join(sorted(clash))}, which --setting {setting.name} sets too; "
                           "run the file without --setting, or choose a setting that leaves that key to the file")

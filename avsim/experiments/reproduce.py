@@ -50,7 +50,6 @@ from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
 from avsim.experiments.set_overrides import check_resumed_set, experiment_with_set, flat_items, record_set, set_flags
 from avsim.experiments.spec import Experiment, check_networks, check_renderer, check_run_names, load_experiment, located
-from avsim.config_owners import dotted_keys
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE, SETTINGS
 
@@ -97,7 +96,7 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     paths = experiment_paths or [EXPERIMENTS_DIR / f"{name}.toml" for name in names]
     if setting not in SETTINGS:
         raise ConfigError(f"unknown render setting {setting!r}; choose one of {', '.join(SETTINGS)} (docs/realism.md)")
-    setting_keys = dotted_keys(SETTINGS[setting].config_overrides())
+    setting_keys = SETTINGS[setting].keys
     experiments = [experiment_with_set(under_setting(load_experiment(path), SETTINGS[setting]), overrides or {},
                                        setting_keys) for path in paths]
     stems = [e.path.stem for e in experiments]
@@ -217,7 +216,7 @@ def check_resumed_selection(folder: Path, experiments: list[Experiment], *, yes:
 
 # Every key a render setting sets (`avsim.realism.settings`): where a folder's runs and this command's differ in
 # one, the folder was made under another --setting.
-SETTING_KEYS = tuple(sorted({key for setting in SETTINGS.values() for key in dotted_keys(setting.config_overrides())}))
+SETTING_KEYS = tuple(sorted({key for setting in SETTINGS.values() for key in setting.keys}))
 
 
 def check_resumed_setting(folder: Path, experiments: list[Experiment], existing: list[dict], *, yes: bool) -> None:

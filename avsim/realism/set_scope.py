@@ -55,7 +55,7 @@ class SetScope:
         if own:
             raise ConfigError(f"--set {', '.join(sorted(own))}: {self.command} sets it itself; {self.own_fix}")
         for setting in settings:
-            clash = keys & dotted_keys(setting.config_overrides())
+            clash = keys & setting.keys
             if clash:
                 raise ConfigError(f"--set {', '.join(sorted(clash))}: {self.setting_flag} {setting.name} sets it too, so "
                                   f"the --set would undo part of that setting; drop it from {self.setting_flag} or "

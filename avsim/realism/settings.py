@@ -12,6 +12,7 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 from avsim.config import SimConfig, with_overrides
+from avsim.config_owners import dotted_keys
 
 
 
@@ -26,6 +27,12 @@ class RenderSetting:
     def config_overrides(self) -> dict[str, dict[str, object]]:
         """The overrides as fresh nested dicts, as `avsim.config.with_overrides` takes them."""
         return {section: dict(values) for section, values in self.overrides.items()}
+
+    @property
+    def keys(self) -> frozenset[str]:
+        """The dotted keys this setting sets ("camera.supersample", ...): what a file, a flag or a --set may not
+        set beside it, and what tells a folder's runs made under it from others."""
+        return dotted_keys(self.overrides)
 
     def config(self, overrides: Mapping[str, Any] = MappingProxyType({})) -> SimConfig:
         """The default config under this setting, then `overrides` (nested, as a command's `--set` gives them)."""
