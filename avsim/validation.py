@@ -102,6 +102,17 @@ def ranged(default: Any, lo: float | None = None, hi: float | None = None, *, lo
     return dataclasses.field(default=default, metadata={RANGE_KEY: spec})
 
 
+def check_span(value: Any, name: str, bounds: Range) -> tuple[float, float]:
+    """A (lo, hi) pair with lo <= hi, each inside `bounds`, as a tuple; a one-line ConfigError naming `name` if not.
+    A range a value is drawn uniformly from (a view bank's sun elevation, a photometric gain)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise ConfigError(f"{name} must be a pair [lo, hi], each {bounds.describe()}, got {value!r}")
+    lo, hi = (bounds.check(item, name) for item in value)
+    if lo > hi:
+        raise ConfigError(f"{name} must be a pair [lo, hi] with lo <= hi, got {list(value)}")
+    return lo, hi
+
+
 def field_range(cls_or_instance: Any, name: str) -> Range | None:
     """The Range declared for dataclass field `name`, or None."""
     for f in dataclasses.fields(cls_or_instance):

@@ -22,7 +22,7 @@ from avsim.config import SimConfig, with_overrides
 from avsim.errors import ConfigError
 from avsim.experiments.spec import check_run_names
 from avsim.plausibility import check_meaningful
-from avsim.validation import Range, declared_ranges, name_list_flag, number_flag, number_list_flag, ranged
+from avsim.validation import Range, check_span, declared_ranges, name_list_flag, number_flag, number_list_flag, ranged
 
 
 def _numeric_keys() -> list[tuple[str, Range | None, type]]:
@@ -137,3 +137,13 @@ def test_a_random_accepted_value_runs_cleanly_or_is_refused_in_one_line(key, spe
         else:
             assert status in (2, 3) and len(err.splitlines()) <= 2, err
             assert not out.exists()
+
+
+@pytest.mark.parametrize("value, named", [
+    ([0.5], "a pair"), ("ab", "a pair"), ([1, 0.5], "lo <= hi"), ([0.5, 5], "in [0, 1]"), ([0.1, float("nan")], "in [0, 1]"),
+])
+def test_a_span_is_a_pair_in_order_inside_its_bounds(value, named):
+    assert check_span([0.2, 0.2], "gain", Range(0, 1)) == (0.2, 0.2)
+    with pytest.raises(ConfigError) as refused:
+        check_span(value, "gain", Range(0, 1))
+    assert str(refused.value).startswith("gain must be") and named in str(refused.value)

@@ -47,6 +47,7 @@ from avsim.attacks.view_bank import ViewBankSpec, build_view_bank, closed_loop_b
 from avsim.config import PerceptionConfig, check_seed
 from avsim.errors import ConfigError
 from avsim.metrics import write_json_atomic
+from avsim.attacks.defaults import CLOSED_LOOP_METHODS, DEFAULT_THREADS
 from avsim.validation import Range, check_finite_tree
 from avsim.perception.detector.weights import resolve_weights_path
 from avsim.perception.detector.weights import load_weights
@@ -54,9 +55,6 @@ from avsim.world.signs import SIGN_SHAPES
 from avsim.world.textures import TEXTURE_DIR, load_texture_png, save_texture_png
 
 OPTIMISED_TEXTURE_PX = 128
-# Methods whose objective is a closed-loop drive-by: they get the closed loop's bank and sensor.
-CLOSED_LOOP_METHODS = ("driveby", "range_inflation")
-DEFAULT_THREADS = 2
 
 
 def texture_tensor(rgb: np.ndarray) -> torch.Tensor:
@@ -310,15 +308,20 @@ class Recipe:
     purify: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
-def _dataclass_from(kind, values: dict[str, Any], where: str):
+def _dataclass_from(kind, values: dict[str, Any], source: str, section: str):
+    """`kind` (a recipe's ViewBankSpec or PhotometricRanges) from a record's `section` table; a one-line
+    ConfigError that names `source` (the record) and the field where a value is missing, of the wrong type or
+    outside its range (`kind` checks its ranges as it is built)."""
     names = {f.name: f for f in dataclasses.fields(kind)}
     unknown = sorted(set(values) - set(names))
     if unknown:
-        raise ConfigError(f"{where}: unknown keys {', '.join(unknown)}")
+        raise ConfigError(f"{source}: {section}: unknown keys {', '.join(unknown)}")
     try:
         return kind(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
-    except (TypeError, ValueError) as exc:  # a string where a number belongs, a list of the wrong length
-        raise ConfigError(f"{where}: {exc}") from None
+    except ConfigError as exc:  # names the field itself ("view bank seed must be ...")
+        raise ConfigError(f"{source}: {exc}") from None
+    except (TypeError, ValueError) as exc:  # a string where a number belongs
+        raise ConfigError(f"{source}: {section}: {exc}") from None
 
 
 def read_recipe(json_path: str | os.PathLike) -> Recipe:
@@ -327,11 +330,10 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
         check_finite_tree(record, f"--from {path}")  # JSON's NaN and Infinity, which Python's json accepts
-        method, seed, hyper = record["method"], record["seed"], dict(record["hyperparameters"])
-        bank = {k: v for k, v in record["view_bank"].items() if k not in ("views", "views_by_camera")}
-        photometric = record.get("photometric", {})
+        method, seed, hyper = record["method"], record["seed"], record["hyperparameters"]
+        tables = {"hyperparameters": hyper, "view_bank": record["view_bank"],
+                  "photometric": record.get("photometric", {}), "purify": record.get("purify", {})}
         detector = record.get("detector", "detector")
-        purify = dict(record.get("purify", {}))
     except FileNotFoundError:
         raise ConfigError(f"--from {path}: no such file; give a texture's JSON record, e.g. textures/driveby_detector.json") from None
     except UnicodeDecodeError:
@@ -343,7 +345,7 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
     except KeyError as exc:
         raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` (it has no "
                           f"'{exc.args[0]}' field)") from None
-    except (json.JSONDecodeError, TypeError, AttributeError) as exc:
+    except (json.JSONDecodeError, TypeError, ValueError, AttributeError) as exc:  # a field of the wrong shape
         raise ConfigError(f"--from {path}: not a texture record written by `avsim attack generate` ({exc!r})") from None
     if "weights_sha256" not in record:
         # A record from before the drive-by rework: the generator that wrote it (its view bank, EOT
@@ -356,6 +358,15 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
     check_seed(seed, f"--from {path}: seed")
     if detector not in TARGET_NAMES:
         raise ConfigError(f"--from {path}: unknown detector {detector!r}; choose one of: {', '.join(TARGET_NAMES)}")
+    hashes = record["weights_sha256"]
+    if not isinstance(hashes, dict) or not all(isinstance(v, str) or v is None for v in hashes.values()):
+        raise ConfigError(f"--from {path}: weights_sha256 must map each weights file to its SHA-256 (or null), "
+                          f"got {hashes!r}")
+    for name, table in tables.items():
+        if not isinstance(table, dict):
+            raise ConfigError(f"--from {path}: {name} must be a table of its fields, got {table!r}")
+    hyper, photometric, purify = dict(hyper), tables["photometric"], dict(tables["purify"])
+    bank = {k: v for k, v in tables["view_bank"].items() if k not in ("views", "views_by_camera")}
     try:
         check_hyperparameters(method, seed, hyper)
     except ConfigError as exc:
@@ -364,11 +375,10 @@ def read_recipe(json_path: str | os.PathLike) -> Recipe:
         purify_config(purify)
     except ConfigError as exc:
         raise ConfigError(f"--from {path}: purify: {exc}") from None
-    hashes = dict(record["weights_sha256"])
     ssim_floor = Range(0, 1, lo_open=True, hi_open=True).check(record.get("ssim_floor", SSIM_FLOOR), f"--from {path}: ssim_floor")
     threads = Range(1, 64, integer=True).check(record.get("torch_threads", DEFAULT_THREADS), f"--from {path}: torch_threads")
-    return Recipe(method, seed, hyper, detector, _dataclass_from(ViewBankSpec, bank, f"--from {path}: view_bank"),
-                  _dataclass_from(PhotometricRanges, photometric, f"--from {path}: photometric"),
+    return Recipe(method, seed, hyper, detector, _dataclass_from(ViewBankSpec, bank, f"--from {path}", "view_bank"),
+                  _dataclass_from(PhotometricRanges, photometric, f"--from {path}", "photometric"),
                   float(ssim_floor), threads, hashes, purify)
 
 

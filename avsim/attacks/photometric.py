@@ -21,6 +21,9 @@ import torch
 from kornia.enhance import jpeg_codec_differentiable
 from kornia.filters import gaussian_blur2d, motion_blur
 
+from avsim.errors import ConfigError
+from avsim.validation import Range, check_span
+
 
 @dataclass(frozen=True)
 class PhotometricRanges:
@@ -40,6 +43,23 @@ class PhotometricRanges:
     # Gaussian read noise, after rounding the frame to 8 bits. 0 and False: neither.
     sensor_noise_std_levels: float = 0.0
     quantise_8bit: bool = False
+
+    def __post_init__(self) -> None:
+        # Checked before any view is rendered (a texture's record carries these: `avsim attack generate --from`).
+        check_span(self.gain, "photometric gain", Range(0, 4, lo_open=True))
+        check_span(self.contrast, "photometric contrast", Range(0, 4, lo_open=True))
+        check_span(self.fog_density, "photometric fog_density", Range(0, 1))
+        check_span(self.blur_sigma_px, "photometric blur_sigma_px", Range(0.01, 10, unit="px"))
+        check_span(self.noise_std, "photometric noise_std", Range(0, 1))
+        check_span(self.jpeg_quality, "photometric jpeg_quality", Range(1, 100))
+        for name in ("blur_probability", "motion_blur_probability", "jpeg_probability"):
+            Range(0, 1).check(getattr(self, name), f"photometric {name}")
+        kernel_px = Range(3, 31, integer=True, unit="px").check(self.motion_blur_kernel_px, "photometric motion_blur_kernel_px")
+        if kernel_px % 2 == 0:
+            raise ConfigError(f"photometric motion_blur_kernel_px must be odd (a kernel centred on its pixel), got {kernel_px}")
+        Range(0, 64, unit="levels").check(self.sensor_noise_std_levels, "photometric sensor_noise_std_levels")
+        if not isinstance(self.quantise_8bit, bool):
+            raise ConfigError(f"photometric quantise_8bit must be true or false, got {self.quantise_8bit!r}")
 
 
 # The experiment files' perception.sensor_noise_std.

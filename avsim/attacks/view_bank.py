@@ -31,15 +31,30 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from avsim.attacks.defaults import DEFAULT_ATTACKED_SPEED_KMH
 from avsim.attacks.sign_view import corners_px, face_alpha, face_hidden, sign_view
 from avsim.attacks.warp import fit_gain_offset, warp_texture
-from avsim.config import SimConfig, with_overrides
+from avsim.config import ScenarioConfig, SimConfig, with_overrides
 from avsim.errors import ConfigError
 from avsim.loop import ClosedLoop
 from avsim.perception.base import Detection
 from avsim.sensors.camera import CAMERA_NAMES
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
+from avsim.validation import Range, check_span, field_range
 from avsim.world.towns import PLACEMENTS, TOWNS
+
+# Front bumper to the sign [m] a bank's views may be drawn at: the approach road is 300 m long.
+BANK_DIST_RANGE_M = Range(0, 300, lo_open=True, unit="m", note="the approach road is 300 m")
+# How far the car may sit off its lane's centre [m] in a view: half of every town's 3.5-m lane.
+LANE_HALF_WIDTH_M = 1.75
+
+
+def _check_names(names: tuple[str, ...], field_name: str, choices: tuple[str, ...]) -> None:
+    """A one-line ConfigError unless `names` are distinct, at least one, each among `choices`."""
+    if isinstance(names, str) or not names or any(name not in choices for name in names) or len(set(names)) != len(names):
+        shown = names if isinstance(names, str) else ",".join(map(str, names or ())) or "none"
+        raise ConfigError(f"view bank {field_name} must be a list of distinct names from {', '.join(choices)}; got {shown}")
+
 
 CROP_PX = 256  # a multiple of the detector's largest stride (32)
 
@@ -78,18 +93,28 @@ class ViewBankSpec:
     max_pitch_deg: float = 0.0
 
     def __post_init__(self) -> None:
-        # Checked here, before any rendering, so a misspelt camera costs nothing.
-        unknown = [c for c in self.cameras if c not in CAMERA_NAMES]
-        if not self.cameras or unknown or len(set(self.cameras)) != len(self.cameras):
-            raise ConfigError(f"view bank cameras must be distinct names from {', '.join(CAMERA_NAMES)}; "
-                              f"got {','.join(self.cameras) or 'none'}")
-        near_m, far_m = self.dist_range_m
-        if not 0 < near_m < far_m:
+        # Checked here, before any rendering, so a misspelt camera or a range no view can be drawn from costs nothing
+        # (a texture's record carries every field: `avsim attack generate --from`).
+        _check_names(self.towns, "towns", tuple(TOWNS.names()))
+        _check_names(self.placements, "placements", tuple(PLACEMENTS.names()))
+        _check_names(self.cameras, "cameras", CAMERA_NAMES)
+        for field_name in ("lightings_per_cell", "views_per_group"):
+            Range(1, 1000, integer=True).check(getattr(self, field_name), f"view bank {field_name}")
+        Range(0, integer=True).check(self.seed, "view bank seed")
+        near_m, far_m = check_span(self.dist_range_m, "view bank dist_range_m", BANK_DIST_RANGE_M)
+        if near_m == far_m:
             raise ConfigError(f"view bank dist_range_m must be (near, far) with 0 < near < far [m], got {list(self.dist_range_m)}")
-        if self.frame_spacing_m is not None and not 0.1 <= self.frame_spacing_m <= far_m - near_m:
-            raise ConfigError(f"view bank frame_spacing_m must be in [0.1, {far_m - near_m:g}] m, got {self.frame_spacing_m}")
-        if not 0 <= self.braking_probability <= 1 or not 0 <= self.max_pitch_deg <= 10:
-            raise ConfigError("view bank braking_probability must be in [0, 1] and max_pitch_deg in [0, 10] deg")
+        Range(0, LANE_HALF_WIDTH_M, unit="m", note="the car's centre stays in its lane").check(
+            self.lateral_jitter_m, "view bank lateral_jitter_m")
+        Range(0, 15, unit="deg").check(self.yaw_jitter_deg, "view bank yaw_jitter_deg")
+        Range(0, 1).check(self.fog_probability, "view bank fog_probability")
+        for field_name in ("sun_elevation_deg", "sun_azimuth_deg", "sun_intensity"):
+            # The same bounds as the scenario keys each drawn value becomes.
+            check_span(getattr(self, field_name), f"view bank {field_name}", field_range(ScenarioConfig, field_name))
+        if self.frame_spacing_m is not None:
+            Range(0.1, far_m - near_m, unit="m").check(self.frame_spacing_m, "view bank frame_spacing_m")
+        Range(0, 1).check(self.braking_probability, "view bank braking_probability")
+        Range(0, 10, unit="deg").check(self.max_pitch_deg, "view bank max_pitch_deg")
 
 
 # The closed loop the attacks are meant for, as measured (README, "Vehicle dynamics"; issue 14):
@@ -114,7 +139,7 @@ def frame_spacing_m(speed_kmh: float, control_dt_s: float) -> float:
     return speed_kmh / 3.6 * control_dt_s
 
 
-def closed_loop_bank_spec(cameras: tuple[str, ...] = ("front",), speed_kmh: float = 85.0, control_dt_s: float = 0.05,
+def closed_loop_bank_spec(cameras: tuple[str, ...] = ("front",), speed_kmh: float = DEFAULT_ATTACKED_SPEED_KMH, control_dt_s: float = 0.05,
                           dist_range_m: tuple[float, float] = (8.0, 50.0), lightings_per_cell: int = 2,
                           seed: int = 0) -> ViewBankSpec:
     """The bank of the drive-by objectives: every town and placement, drive-by sequences at the
@@ -301,7 +326,8 @@ def build_view_bank(spec: ViewBankSpec, clean_texture: torch.Tensor, base: SimCo
                 finally:
                     loop.close()
     if not out.camera_of:
-        raise ValueError("no view of the stop sign could be rendered; check the distance range and cameras")
+        raise ConfigError("no view of the stop sign could be rendered: the sign is out of every camera's view or too small "
+                          "at every distance drawn; give a nearer dist_range_m or other cameras")
     return ViewBank(torch.stack(out.backgrounds), torch.stack(out.corners), torch.stack(out.gains), torch.stack(out.offsets),
                     torch.stack(out.boxes), out.group_of, out.camera_of, out.dist_of, groups, alpha,
                     torch.tensor(out.gate_ahead, dtype=torch.float32), torch.tensor(out.gate_offset, dtype=torch.float32),

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from avsim.attacks.defaults import CLOSED_LOOP_METHODS, DEFAULT_ATTACKED_SPEED_KMH, DEFAULT_THREADS
 from avsim.cli.flags import SEED_FLAG
 from avsim.cli.overrides import parse_set
 from avsim.cli.recording_modes import add_recording_modes
@@ -35,7 +36,8 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
                                           ("--views-per-step", args.views_per_step), ("--set", args.set),
                                           ("--detector", args.detector), ("--cameras", args.cameras),
                                           ("--ssim-floor", args.ssim_floor), ("--seed", args.seed),
-                                          ("--purify", args.purify)) if value not in (None, [])]
+                                          ("--purify", args.purify), ("--speed-kmh", args.speed_kmh),
+                                          ("--threads", args.threads)) if value not in (None, [])]
         if given:
             raise ConfigError(f"--from regenerates a texture from its record alone; drop {', '.join(given)}")
         read_recipe(args.from_json)  # a bad record fails before anything is rendered
@@ -59,11 +61,16 @@ def _cmd_attack_generate(args: argparse.Namespace) -> int:
             check_ssim_floor(ssim_floor)
         # The spec checks the camera names, so a bad one fails before anything is rendered.
         cameras = tuple(args.cameras or ("front",))
-        bank_spec, photometric = default_bank(args.method, cameras, args.speed_kmh)
+        if args.speed_kmh is not None and args.method not in CLOSED_LOOP_METHODS:
+            raise ConfigError(f"--speed-kmh spaces the drive-by methods' frames ({', '.join(CLOSED_LOOP_METHODS)}); "
+                              f"--method {args.method} draws its views at random distances, so drop --speed-kmh")
+        speed_kmh = DEFAULT_ATTACKED_SPEED_KMH if args.speed_kmh is None else args.speed_kmh
+        bank_spec, photometric = default_bank(args.method, cameras, speed_kmh)
         purify = purify_keys(args.purify or "none")
         _, record = generate(args.method, args.out, seed=seed,
                              setup=prepare(args.weights, bank_spec, detector, photometric, purify),
-                             hyperparameters=hyper, ssim_floor=ssim_floor, threads=args.threads)
+                             hyperparameters=hyper, ssim_floor=ssim_floor,
+                             threads=DEFAULT_THREADS if args.threads is None else args.threads)
     print(f"wrote {args.out} (SSIM {record['ssim']:.3f}, L-inf {record['linf']:.3f}, {record['seconds']:.0f} s) "
           f"and {Path(args.out).with_suffix('.json')}")
     return 0
@@ -174,10 +181,11 @@ def add_commands(sub) -> None:
     gen.add_argument("--purify", help="attack through the input purification defence: jpeg or median, at the "
                                       "perception defaults (quality 75, 3 px kernel), by BPDA: the purifier runs "
                                       "in the forward pass and is the identity in the backward pass (default none)")
-    gen.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"), default=85.0,
-                     help="the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart (default 85)")
-    gen.add_argument("--threads", type=number_flag(1, 64, integer=True), default=2, metavar="N",
-                     help="torch threads (default 2; recorded, since the texture's last bits depend on it)")
+    gen.add_argument("--speed-kmh", type=config_flag(ScenarioConfig, "speed_kmh"),
+                     help=f"the attacked speed: the drive-by methods' frames are this speed x 0.05 s apart "
+                          f"(default {DEFAULT_ATTACKED_SPEED_KMH:g})")
+    gen.add_argument("--threads", type=number_flag(1, 64, integer=True), metavar="N",
+                     help=f"torch threads (default {DEFAULT_THREADS}; recorded, since the texture's last bits depend on it)")
     gen.set_defaults(func=_cmd_attack_generate)
     ev = asub.add_parser("eval", help="measure textures in MuJoCo renders; writes report.md and figures")
     ev.add_argument("--signs", type=name_list_flag(), default=["clean", "chen", "eykholt", "lu_v2", "lu_v3", "yang"],

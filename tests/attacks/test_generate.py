@@ -110,6 +110,54 @@ def test_a_record_from_before_the_rework_says_it_cannot_be_replayed(tmp_path, ca
     assert list(out_dir.iterdir()) == []
 
 
+# A shipped record with one field changed: each is refused by `--from` before anything renders, naming the field.
+BAD_RECORD_FIELDS = [
+    (("weights_sha256",), "abc", "weights_sha256"),
+    (("weights_sha256",), None, "weights_sha256"),
+    (("hyperparameters",), "abc", "hyperparameters must be a table"),
+    (("purify",), "jpeg", "purify must be a table"),
+    (("view_bank",), [], "view_bank must be a table"),
+    (("view_bank", "seed"), -5, "view bank seed"),
+    (("view_bank", "towns"), [], "view bank towns"),
+    (("view_bank", "towns"), ["town99"], "view bank towns"),
+    (("view_bank", "placements"), ["diagonal"], "view bank placements"),
+    (("view_bank", "cameras"), "front", "view bank cameras"),
+    (("view_bank", "lightings_per_cell"), 0, "view bank lightings_per_cell"),
+    (("view_bank", "lightings_per_cell"), "2", "view bank lightings_per_cell"),
+    (("view_bank", "views_per_group"), 2.5, "view bank views_per_group"),
+    (("view_bank", "dist_range_m"), [500, 600], "view bank dist_range_m"),
+    (("view_bank", "dist_range_m"), [60, 10], "lo <= hi"),
+    (("view_bank", "lateral_jitter_m"), -3, "view bank lateral_jitter_m"),
+    (("view_bank", "fog_probability"), 5, "view bank fog_probability"),
+    (("view_bank", "sun_elevation_deg"), [75, 500], "view bank sun_elevation_deg"),
+    (("view_bank", "sun_intensity"), [-1, -0.5], "view bank sun_intensity"),
+    (("photometric", "gain"), [1.3, -0.7], "photometric gain"),
+    (("photometric", "gain"), [0.7, 1.0, 1.3], "photometric gain must be a pair"),
+    (("photometric", "blur_probability"), 5, "photometric blur_probability"),
+    (("photometric", "jpeg_quality"), [0, 500], "photometric jpeg_quality"),
+    (("photometric", "noise_std"), [-1, -0.5], "photometric noise_std"),
+    (("photometric", "motion_blur_kernel_px"), 0, "photometric motion_blur_kernel_px"),
+    (("photometric", "motion_blur_kernel_px"), 4, "must be odd"),
+    (("photometric", "quantise_8bit"), "yes", "photometric quantise_8bit"),
+]
+
+
+@pytest.mark.parametrize("path, value, named", BAD_RECORD_FIELDS, ids=lambda v: str(v) if isinstance(v, tuple) else None)
+def test_a_record_field_of_the_wrong_shape_or_out_of_range_is_refused_naming_it(tmp_path, path, value, named):
+    record = json.loads((TEXTURE_DIR / "yang.json").read_text())
+    *parents, leaf = path
+    table = record
+    for key in parents:
+        table = table[key]
+    table[leaf] = value
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(record))
+    with pytest.raises(ConfigError) as refused:
+        read_recipe(bad)
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith(f"--from {bad}") and named in message, message
+
+
 def test_every_shipped_record_is_written_by_todays_generator():
     assert [p.name for p in TEXTURE_DIR.glob("*.json") if "weights_sha256" not in json.loads(p.read_text())] == []
 
@@ -119,6 +167,9 @@ def test_every_shipped_record_is_written_by_todays_generator():
     (["--method", "driveby", "--detector", "yolo9000"], "--detector"),
     (["--method", "driveby", "--ssim-floor", "1.5"], "--ssim-floor"),
     (["--steps", "3"], "--method"),
+    (["--from", "textures/yang.json", "--threads", "4"], "drop --threads"),
+    (["--from", "textures/driveby_detector.json", "--speed-kmh", "50"], "drop --speed-kmh"),
+    (["--method", "yang", "--speed-kmh", "50"], "random distances"),
 ])
 def test_generate_flags_are_checked_before_any_work(tmp_path, capsys, argv, mention):
     code = cli.main(["attack", "generate", *argv, "--out", str(tmp_path / "t.png")])
