@@ -25,6 +25,8 @@ from avsim.errors import AvsimError
 # 50 megapixels (an 8K frame is 33): far above any camera frame avsim or a dataset uses, and
 # about 150 MB of RGB, so a decode cannot exhaust memory.
 MAX_IMAGE_PIXELS = 50_000_000
+# The most bytes an image file may hold: an uncompressed 50-megapixel RGB BMP, with room for its header.
+MAX_IMAGE_BYTES = 3 * MAX_IMAGE_PIXELS + 1_000_000
 
 
 class ImageError(AvsimError):
@@ -81,12 +83,26 @@ def check_image_file(path: Path, what: str = "image") -> bytes:
         raise ImageError(f"{what} {path} is a folder; pass image files (PNG, JPEG, ...), e.g. {path}/*.png")
     if not path.exists():
         raise ImageError(f"{what} {path} does not exist; pass image files (PNG, JPEG, ...)")
+    if not path.is_file():  # a device would be read until memory runs out, a pipe with no writer blocks
+        raise ImageError(f"{what} {path} is not a regular file (a device, pipe or socket); pass image files (PNG, JPEG, ...)")
     try:
-        data = path.read_bytes()
+        with path.open("rb") as file:
+            head = file.read(65536)
+            # Only the header is read before the size is known (a sparse 2 GB file would be read whole).
+            size_bytes = os.fstat(file.fileno()).st_size
+            if size_bytes > MAX_IMAGE_BYTES:
+                raise ImageError(f"{what} {path} is {size_bytes / 1e6:.0f} MB, more than the "
+                                 f"{MAX_IMAGE_BYTES // 1_000_000} MB of any image avsim reads; pass a smaller image")
+            data = head + file.read()
     except OSError as exc:
         raise ImageError(f"cannot read {what} {path} ({exc.strerror})") from None
-    size = header_size_px(data[:65536])
-    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+    size = header_size_px(head)
+    if size is None:
+        # Other formats OpenCV decodes (TIFF, PNM, ...) declare their size where this reader does not look, so a
+        # small file could still decode to tens of gigabytes.
+        raise ImageError(f"{what} {path} is not PNG, JPEG, BMP, GIF or WebP (or its header is cut short), the formats "
+                         "whose size avsim checks before decoding; convert it to PNG")
+    if size[0] * size[1] > MAX_IMAGE_PIXELS:
         raise ImageError(f"{what} {path} declares {size[0]}x{size[1]} px, more than {MAX_IMAGE_PIXELS // 1_000_000} "
                          f"megapixels; pass a smaller image")
     return data

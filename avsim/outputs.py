@@ -118,6 +118,10 @@ def check_declared_outputs(args: argparse.Namespace) -> None:
         values = getattr(args, dest, None)
         for value in values if isinstance(values, list) else [values]:
             # Only a path that exists: an input may also be a name (--sign clean), not a file.
+            if value and Path(value).exists() and not (Path(value).is_file() or Path(value).is_dir()):
+                # A device or a pipe: /dev/zero would be read until memory runs out, a pipe with no writer blocks.
+                reader = flag if flag.startswith("-") else f"the {flag} argument"
+                raise OutputError(f"{value} ({reader}) is not a regular file (a device, pipe or socket); give a file")
             if value and Path(value).exists() and Path(value).resolve() in claimed:
                 reader = flag if flag.startswith("-") else f"the {flag} argument"
                 raise OutputError(f"{claimed[Path(value).resolve()]} would replace {value}, which {reader} reads; "

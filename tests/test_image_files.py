@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
 
-from avsim.image_files import MAX_IMAGE_PIXELS, ImageError, check_image_file, decode_image, header_size_px
+from avsim.image_files import MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, ImageError, check_image_file, decode_image, header_size_px
 
 
 @pytest.mark.parametrize("suffix", [".png", ".jpg", ".bmp", ".webp"])
@@ -40,3 +43,27 @@ def test_a_truncated_png_is_one_line_without_libpngs_printout(tmp_path, capfd):
         decode_image(check_image_file(path), path)
     assert "\n" not in str(refused.value)
     assert capfd.readouterr().err == ""
+
+
+def test_a_device_or_a_pipe_is_refused_without_reading_it(tmp_path):
+    pipe = tmp_path / "frame.png"
+    os.mkfifo(pipe)  # opened for reading, it would block with no writer
+    for path in (Path("/dev/zero"), pipe):
+        with pytest.raises(ImageError, match="not a regular file"):
+            check_image_file(path)
+
+
+def test_a_format_whose_size_is_not_checked_is_refused_before_decoding(tmp_path):
+    # A TIFF decodes in OpenCV, but its header, which may declare 30000 x 30000 in a few hundred bytes, is not read here.
+    tiff = tmp_path / "frame.tif"
+    cv2.imwrite(str(tiff), np.zeros((8, 8, 3), np.uint8))
+    with pytest.raises(ImageError, match="not PNG, JPEG, BMP, GIF or WebP"):
+        check_image_file(tiff)
+
+
+def test_a_file_larger_than_any_image_is_refused_after_reading_its_header_only(tmp_path):
+    big = tmp_path / "big.png"
+    with big.open("wb") as file:
+        file.truncate(MAX_IMAGE_BYTES + 1)  # sparse: no disk used
+    with pytest.raises(ImageError, match="MB, more than"):
+        check_image_file(big)

@@ -81,3 +81,17 @@ def test_write_image_names_the_file_when_nothing_can_be_written(tmp_path):
         (tmp_path / "adir").mkdir()
         write_bytes_atomic(tmp_path / "adir", b"x")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "ok.png"]  # no temporary file left
+
+
+@pytest.mark.parametrize("argv", [["sweep", "{input}", "--out", "{tmp}/o"], ["run", "--config", "{input}"],
+                                  ["reproduce", "--experiments", "{input}", "--out", "{tmp}/o"]])
+def test_an_input_that_is_a_device_or_a_pipe_is_refused_before_it_is_read(tmp_path, capsys, argv):
+    from avsim import cli
+
+    pipe = tmp_path / "plan.toml"
+    os.mkfifo(pipe)  # read, it would block with no writer; /dev/zero would be read until memory ran out
+    for source in ("/dev/zero", str(pipe)):
+        code = cli.main([arg.replace("{input}", source).replace("{tmp}", str(tmp_path)) for arg in argv])
+        err = capsys.readouterr().err.splitlines()
+        assert code == 2 and len(err) == 1 and "is not a regular file" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.toml"]

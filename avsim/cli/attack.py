@@ -88,8 +88,18 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
     from avsim.world.textures import TEXTURE_DIR, load_texture_png
 
     signs, detectors, placements = args.signs, args.detectors, tuple(args.placements)  # name lists (name_list_flag)
+    if len(detectors) > 1 and not args.drives:
+        raise ConfigError(f"--detectors {','.join(detectors)}: only the drive-bys use the detectors after the first "
+                          f"(the fixed-distance tables use {detectors[0]}), and --drives 0 runs none; give --drives N "
+                          "or one detector")
+    textures: dict[Path, str] = {}
     for sign in signs:  # every texture decoded, as a scene will decode it, before the first is measured
-        load_texture_png(resolve_sign_texture(sign), expected_aspect=1.0)
+        texture = resolve_sign_texture(sign)
+        load_texture_png(texture, expected_aspect=1.0)
+        if texture.resolve() in textures:  # `clean` and `stop_sign`, or a name and its path
+            raise ConfigError(f"--signs names one texture twice ({textures[texture.resolve()]} and {sign}, both "
+                              f"{texture}); give each once")
+        textures[texture.resolve()] = sign
     from avsim.world.towns import PLACEMENTS, TOWNS
 
     # Every name of the plan is checked before the first render.
@@ -108,6 +118,9 @@ def _cmd_attack_eval(args: argparse.Namespace) -> int:
         load_weights(args.weights)  # missing, corrupt or mismatched weights fail before anything is rendered
         base = with_overrides(base, {"perception": {"weights_path": args.weights}})
     threshold = base.policy.conf_threshold
+    from avsim.sensors.gl import check_offscreen_rendering
+
+    check_offscreen_rendering()  # no EGL: one line before the folder is made, not after "measuring ..."
     out = Path(args.out)
     reports, drive_bys = [], {}
     with locked_output(out, f"avsim attack eval --out {out}"):  # one writer at a time; a failed start leaves no folder

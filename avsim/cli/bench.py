@@ -7,6 +7,9 @@ import argparse
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    from avsim.sensors.gl import check_offscreen_rendering
+
+    check_offscreen_rendering()  # every printout renders: no EGL is one line before the first figure, not after it
     if args.profile:
         from avsim.bench.profile import run_profile
 

@@ -19,6 +19,8 @@ from avsim.validation import name_list_flag, number_flag
 
 DEFAULT_SETTINGS = "baseline,photo"
 DEFAULT_NETWORKS = "coco,yolo,detector"
+# What a run writes into --out.
+REALISM_OUTPUTS = ("report.md", "recall.png", "frames.jsonl")
 
 
 _max_dist_range = number_flag(DEFAULT_MAX_DIST_M, MAX_DIST_LIMIT_M, integer=True, unit="m")
@@ -45,9 +47,10 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     for town in towns:
         TOWNS.get(town)  # every name checked before anything renders
     out = Path(args.out)
-    if (out / "frames.jsonl").exists():  # a finished run's frames: another run into it would replace them
-        raise OutputError(f"--out {out} already holds a realism run (frames.jsonl); choose another --out, or remove "
-                          "that folder to run it again")
+    held = [name for name in REALISM_OUTPUTS if (out / name).exists()]
+    if held:  # a finished run's results, or a file of the user's: this run would replace them
+        raise OutputError(f"--out {out} already holds {', '.join(held)}, which this run would replace; choose another "
+                          "--out, or remove them to run it again")
     settings = tuple(SETTINGS[name] for name in args.settings)
     overrides = parse_set(args.set)
     REALISM_SET.check(overrides, settings)
@@ -62,7 +65,7 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     write_figure(rows, figure)
     os.replace(figure, out / "recall.png")
     print(text)
-    print(f"wrote {out}/report.md, recall.png and frames.jsonl")
+    print(f"wrote {out}/{', '.join(REALISM_OUTPUTS)}")
     return 0
 
 

@@ -67,8 +67,10 @@ CASES = {
     "snapshot --out under a file": Case(["snapshot", "--out", "{tmp}/afile/snap"], "is a file", files={"afile": "x"}),
     "snapshot --out ''": Case(["snapshot", "--out", ""], "prefix"),
     "sweep --out a file": Case(["sweep", str(SMOKE), "--out", "{tmp}/afile"], "not a folder", files={"afile": "x"}),
-    "realism --out holding a run": Case(["realism", "--towns", "town07", "--out", "{tmp}/r"], "already holds a realism run",
+    "realism --out holding a run": Case(["realism", "--towns", "town07", "--out", "{tmp}/r"], "already holds report.md, frames.jsonl",
                                         files={"r/frames.jsonl": "{}\n", "r/report.md": "# the first run"}),
+    "realism --out holding a report of the user's": Case(["realism", "--towns", "town07", "--out", "{tmp}/r"],
+                                                         "already holds report.md", files={"r/report.md": "mine"}),
     "sweep a folder": Case(["sweep", "{tmp}/sweeps", "--out", "{tmp}/out"], "sweeps is a folder; give the sweep file",
                            files={"sweeps/keep": ""}),
     "sweep --out in /proc": Case(["sweep", str(SMOKE), "--out", "/proc/sweep"], "cannot write in /proc"),
@@ -78,6 +80,11 @@ CASES = {
     "attack generate --out a folder": Case(["attack", "generate", "--method", "yang", "--out", "{tmp}/d.png"],
                                            "is a folder", files={"d.png/keep": ""}),
     "attack eval --out a file": Case(["attack", "eval", "--out", "{tmp}/afile"], "not a folder", files={"afile": "x"}),
+    "attack eval: a second detector with no drive-bys": Case(
+        ["attack", "eval", "--drives", "0", "--detectors", "detector,coco", "--signs", "clean", "--out", "{tmp}/ae"],
+        "--drives 0 runs none"),
+    "attack eval: one texture by two names": Case(
+        ["attack", "eval", "--drives", "0", "--signs", "clean,stop_sign", "--out", "{tmp}/ae"], "one texture twice"),
     "attack sweep --out in /proc": Case(["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--out", "/proc/a"],
                                         "cannot write in /proc"),
     "attack sweep --closed-loop: no such file": Case(
