@@ -3,7 +3,8 @@
 A PNG's header can declare 100,000 x 100,000 pixels in a few hundred bytes (a decompression
 bomb); OpenCV would then stop on its own pixel-limit assertion, or try to allocate 30 GB.
 `check_image_file` reads the width and height from the PNG or JPEG header (and BMP, GIF,
-WebP) and refuses more than `MAX_IMAGE_PIXELS` before decoding; `decode_image` decodes with
+WebP) and refuses more than `MAX_IMAGE_PIXELS` before decoding, and refuses the formats whose header
+it does not read (TIFF, PNM, ...), a file larger than any such image, and a device or a pipe; `decode_image` decodes with
 libpng's and libjpeg's warnings kept off the terminal (they print to the C stderr, one
 refusal would otherwise be several lines) and turns every failure into one line.
 """
@@ -80,11 +81,12 @@ def check_image_file(path: Path, what: str = "image") -> bytes:
     """The bytes of image file `path`, after refusing (one line, ImageError) a missing path, a
     folder, an unreadable file, or a header that declares more than MAX_IMAGE_PIXELS."""
     if path.is_dir():
-        raise ImageError(f"{what} {path} is a folder; pass image files (PNG, JPEG, ...), e.g. {path}/*.png")
+        raise ImageError(f"{what} {path} is a folder; pass image files (PNG, JPEG, BMP, GIF or WebP), e.g. {path}/*.png")
     if not path.exists():
-        raise ImageError(f"{what} {path} does not exist; pass image files (PNG, JPEG, ...)")
+        raise ImageError(f"{what} {path} does not exist; pass image files (PNG, JPEG, BMP, GIF or WebP)")
     if not path.is_file():  # a device would be read until memory runs out, a pipe with no writer blocks
-        raise ImageError(f"{what} {path} is not a regular file (a device, pipe or socket); pass image files (PNG, JPEG, ...)")
+        raise ImageError(f"{what} {path} is not a regular file (a device, pipe or socket); pass image files "
+                         "(PNG, JPEG, BMP, GIF or WebP)")
     try:
         with path.open("rb") as file:
             head = file.read(65536)
@@ -117,7 +119,7 @@ def decode_image(data: bytes, path: Path, flags: int = cv2.IMREAD_COLOR, what: s
         raise ImageError(f"{what} {path} cannot be decoded ({str(exc).strip().splitlines()[-1]})") from None
     if image is None:
         raise ImageError(f"{what} {path} cannot be decoded as an image (corrupt, truncated or not an image); "
-                         "pass PNG, JPEG or another common format")
+                         "pass a PNG, JPEG, BMP, GIF or WebP file")
     return image
 
 

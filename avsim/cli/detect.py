@@ -77,7 +77,8 @@ def add_commands(sub) -> None:
     """Add `avsim detect` and `avsim replay` to the subcommands `sub`."""
     detect = sub.add_parser("detect", help="run a perception on image files; one JSON line of detections per image",
                             description=DETECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
-    detect.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
+    detect.add_argument("images", nargs="+", metavar="IMAGE",
+                        help="image files: PNG, JPEG, BMP, GIF or WebP (the formats whose size is checked before decoding)")
     detect.add_argument("--perception", help="detector (default), coco, yolo, ensemble or onnx")
     detect.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override any config key, e.g. --set perception.coco_input=resize (repeatable)")
