@@ -67,12 +67,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if base is not None and base.scenario.sign == NO_SIGN:
         always_read.add("scenario.sign")
     check_read(config, set_keys(flag_overrides(args)) - always_read, recorded=recorded)
+    if args.mcap_images is not None and not args.mcap:
+        raise ConfigError(f"--mcap-images {args.mcap_images} says how --mcap stores camera images; add --mcap FILE, "
+                          "or drop it")
     if args.mcap:
         from avsim.recording.ros_types import require_rosbags
 
         require_rosbags()  # before the run, not after it
     output = run_recorded(config, rrd_path=args.rrd, mp4_path=args.mp4, mcap_path=args.mcap,
-                          mcap_images=args.mcap_images)
+                          mcap_images=args.mcap_images or "png")
     result, wall_s = output.result, output.wall_s
     print(format_summary(result, wall_s))
     if args.json is not None:
@@ -91,14 +94,14 @@ def add_commands(sub) -> None:
                                           "yolo (YOLOv3-tiny, COCO), ensemble (both on each frame), onnx (your YOLO-layout ONNX detector) or oracle "
                                           "(ground-truth boxes)")
     add_output_argument(run, "--json", kind=FILE, help="write the result record to this JSON file")
-    add_output_argument(run, "--rrd", kind=FILE,
+    add_output_argument(run, "--rrd", kind=FILE, suffix=".rrd",
                         help="record the run (camera images, detections, car pose, metrics) to this rerun .rrd file")
     add_output_argument(run, "--mp4", kind=FILE, suffix=".mp4",
                         help="write a video of the front camera with the detections, speed and brake to this .mp4 file")
     add_output_argument(run, "--mcap", kind=FILE, suffix=".mcap",
                         help="write the run as a ROS 2 bag in MCAP storage (images, camera_info, detections, odom, tf, "
                              "commands; needs avsim[ros]; docs/ros.md)")
-    run.add_argument("--mcap-images", choices=("png", "jpeg"), default="png",
+    run.add_argument("--mcap-images", choices=("png", "jpeg"),
                      help="how --mcap stores camera images: png (lossless, the default) or jpeg (quality 90, smaller)")
     add_input_argument(run, "--config", help="experiment file (experiments/*.toml), or a batch's results file (results.jsonl, "
                                       "runs.jsonl): run one of its cells as the batch ran it; the flags above apply on top")

@@ -59,7 +59,9 @@ CASES = {
     "run --json a folder, --rrd and --mp4 fine": Case(
         ["run", *ORACLE, "--rrd", "{tmp}/ok.rrd", "--mp4", "{tmp}/ok.mp4", "--json", "{tmp}/d.json"], "is a folder",
         files={"d.json/keep": ""}),
-    "run --rrd a folder": Case(["run", *ORACLE, "--rrd", "{tmp}/adir"], "is a folder", files={"adir/keep": ""}),
+    "run --rrd a folder": Case(["run", *ORACLE, "--rrd", "{tmp}/adir.rrd"], "is a folder", files={"adir.rrd/keep": ""}),
+    "run --rrd without its suffix": Case(["run", *ORACLE, "--rrd", "{tmp}/out.txt"], "ending in .rrd"),
+    "run --mcap-images without --mcap": Case(["run", *ORACLE, "--mcap-images", "jpeg"], "add --mcap FILE"),
     "run --rrd in /proc": Case(["run", *ORACLE, "--rrd", "/proc/x.rrd"], "cannot write in /proc"),
     "run --mp4 in /proc": Case(["run", *ORACLE, "--mp4", "/proc/x.mp4"], "cannot write in /proc"),
     "run --mp4 not .mp4": Case(["run", *ORACLE, "--mp4", "{tmp}/x.avi"], ".mp4"),
