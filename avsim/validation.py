@@ -158,6 +158,11 @@ def check_finite_tree(value: Any, name: str) -> None:
 # ---- command-line flags --------------------------------------------------------------------
 
 def _parse_number(text: str, integer: bool) -> int | float:
+    # Python's int() and float() also take "1_00" and other scripts' digits ("٤٠"), which --set (TOML) refuses:
+    # a flag reads only what its config key would.
+    if not text.isascii() or "_" in text:
+        raise argparse.ArgumentTypeError(f"expects {'an integer' if integer else 'a number'} in ASCII digits without "
+                                         f"underscores, got '{text}'")
     try:
         return int(text) if integer else float(text)
     except ValueError:

@@ -147,3 +147,10 @@ def test_a_span_is_a_pair_in_order_inside_its_bounds(value, named):
     with pytest.raises(ConfigError) as refused:
         check_span(value, "gain", Range(0, 1))
     assert str(refused.value).startswith("gain must be") and named in str(refused.value)
+
+
+@pytest.mark.parametrize("text", ["1_00", "\u0664\u0660", "1\u00a0"])
+def test_a_number_flag_reads_only_what_its_config_key_would(text):
+    with pytest.raises(argparse.ArgumentTypeError, match="ASCII digits"):
+        number_flag(0, 200)(text)
+    assert number_flag(0, 200)("100") == 100.0 and number_flag(0, 200, integer=True)("-0") == 0
