@@ -22,7 +22,8 @@ import numpy as np
 from avsim.config import CameraConfig
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
-from avsim.perception.detector.data import DatasetError, parse_line, read_rgb, split_lines
+from avsim.perception.detector.data import (FINITE, MISSING, DatasetError, Record, check_image_files, field_error,
+                                            parse_line, read_rgb, split_lines)
 from avsim.sensors.pinhole import pinhole_distance_m
 from avsim.stats import wilson_interval
 
@@ -80,28 +81,38 @@ def _bin_name(lo: float, hi: float) -> str:
     return f"{lo}-{hi} m"
 
 
-def _eval_record(line: str, where: str, data_dir: Path) -> dict:
+def _eval_record(line: str, where: str, data_dir: Path) -> tuple[dict, Record]:
     """One labels line as the evaluation reads it, checked as training checks it (`parse_line`),
-    plus the camera it was rendered by; a one-line DatasetError naming FILE:LINE."""
-    parse_line(line, where, data_dir, SIGN_CLASSES)
+    plus the meta keys the scoring reads (camera, target_kind, dist_m); a one-line DatasetError
+    naming FILE:LINE and the field, so no line fails after the images before it were scored."""
+    parsed = parse_line(line, where, data_dir, SIGN_CLASSES)
     record = json.loads(line)
-    camera = record.get("meta", {}).get("camera") if isinstance(record.get("meta"), dict) else None
-    if not isinstance(camera, str):
+    meta = record.get("meta", {})
+    if not isinstance(meta.get("camera"), str):
         raise DatasetError(f"{where} has no meta.camera (the camera the image was rendered by); regenerate the dataset")
-    return record
+    if not isinstance(meta.get("target_kind"), str):
+        raise field_error(where, "meta.target_kind", meta.get("target_kind", MISSING),
+                          'the kind of the sign the view looks at, e.g. "stop_sign"')
+    if not FINITE.contains(meta.get("dist_m", MISSING)):
+        raise field_error(where, "meta.dist_m", meta.get("dist_m", MISSING),
+                          "the camera's depth to that sign [m], a finite number (-1 when not in view)")
+    return record, parsed
 
 
 def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split: str = "val",
              limit: int | None = None, progress: bool = True) -> EvalReport:
-    """Run `detect(image_rgb, camera)` (all detections, any score) over a split and score it."""
+    """Run `detect(image_rgb, camera)` (all detections, any score) over a split and score it.
+    Every labels line, and every image to be scored, is checked before the first is scored."""
     from tqdm import tqdm
 
     data_dir = Path(data_dir)
-    records = [_eval_record(line, where, data_dir) for where, line in split_lines(data_dir, split)]
-    if not records:  # a score over no image would be written as if it meant something
+    parsed = [_eval_record(line, where, data_dir) for where, line in split_lines(data_dir, split)]
+    if not parsed:  # a score over no image would be written as if it meant something
         raise DatasetError(f"{data_dir / split}.jsonl lists no images; evaluate another split (--split) or "
                            f"dataset (--data), or remake it with `avsim detector make-data --out {data_dir} --overwrite`")
-    records = records[:limit] if limit is not None else records
+    parsed = parsed[:limit]  # only the images --limit scores need to exist
+    check_image_files([checked for _, checked in parsed])
+    records = [record for record, _ in parsed]
     tallies = {cls: _ClassTally() for cls in SIGN_CLASSES}
     f_px = CameraConfig().f_px
     per_bin_conf: dict[str, list[float]] = {_bin_name(*b): [] for b in DIST_BINS_M}

@@ -1,12 +1,15 @@
 """The detector report's bookkeeping, on a hand-made dataset scored by scripted detectors."""
 
 import json
+import re
+import shutil
 
 import cv2
 import numpy as np
 import pytest
 
 from avsim.perception.base import Detection
+from avsim.perception.detector.data import DatasetError
 from avsim.perception.evaluation import evaluate, write_report
 
 # (boxes, classes, dist_m): two stop signs in different distance bins, a yield, and a sign-free frame.
@@ -77,3 +80,49 @@ def test_report_writes_markdown_and_plot(tiny_split, tmp_path):
     report = evaluate(_replay([[], [], [], []]), tiny_split, conf_threshold=0.5, progress=False)
     report_path, plot_path = write_report(report, tmp_path / "eval", "test")
     assert "| stop_sign |" in report_path.read_text() and plot_path.stat().st_size > 1000
+
+
+def _never_called(image, camera):
+    raise AssertionError("an image was scored before the bad line was refused")
+
+
+def _with_last_line(tiny_split, tmp_path, **changes):
+    """A copy of the tiny split whose last line has `changes` (None deletes a key; "meta.KEY" reaches into meta)."""
+    shutil.copytree(tiny_split, tmp_path / "d")
+    path = tmp_path / "d" / "val.jsonl"
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    for key, value in changes.items():
+        target, name = (lines[-1]["meta"], key[5:]) if key.startswith("meta.") else (lines[-1], key)
+        if value is None:
+            del target[name]
+        else:
+            target[name] = value
+    path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+    return tmp_path / "d"
+
+
+@pytest.mark.parametrize("changes, match", [
+    # Each ended in an internal error, the meta ones only after the earlier images were scored.
+    ({"image": 5}, "field 'image' is 5"),
+    ({"classes": [["stop_sign"]]}, "field 'classes'"),
+    ({"boxes": 5, "classes": 5}, "field 'boxes' is 5"),
+    ({"meta.target_kind": None}, "field 'meta.target_kind' is missing"),
+    ({"meta.dist_m": "far"}, "field 'meta.dist_m' is \"far\""),
+    ({"image": "images/gone.png"}, "gone.png does not exist"),
+])
+def test_a_bad_line_or_missing_image_is_refused_before_any_image_is_scored(tiny_split, tmp_path, changes, match):
+    data = _with_last_line(tiny_split, tmp_path, **changes)
+    with pytest.raises(DatasetError, match=re.escape(match)) as info:
+        evaluate(_never_called, data, conf_threshold=0.5, progress=False)
+    assert f"val.jsonl:{len(FRAMES)}:" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_truncated_image_is_refused_before_any_is_scored_but_not_beyond_limit(tiny_split, tmp_path):
+    data = _with_last_line(tiny_split, tmp_path)
+    last = data / "images" / f"{len(FRAMES) - 1}.png"
+    last.write_bytes(last.read_bytes()[:100])
+    with pytest.raises(DatasetError, match="is cut short"):
+        evaluate(_never_called, data, conf_threshold=0.5, progress=False)
+    # --limit scores only the first images: one it never reads need not be whole.
+    report = evaluate(_replay([[], []]), data, conf_threshold=0.5, limit=2, progress=False)
+    assert report.n_images == 2

@@ -27,6 +27,7 @@ from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.augment import AugmentConfig, clip_boxes, jitter_letterbox, photometric
 from avsim.perception.detector.letterbox import fit, to_tensor, warp
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE
+from avsim.validation import Range
 
 SPLITS = ("train", "val")
 
@@ -37,37 +38,105 @@ class DatasetError(AvsimError):
 
 @dataclass(frozen=True)
 class Record:
-    """One labelled image: boxes (G, 4) xyxy [image px], classes (G,) int64 indices into the class names."""
+    """One labelled image: boxes (G, 4) xyxy [image px], classes (G,) int64 indices into the class names;
+    `where` is its labels line, FILE:LINE, for errors."""
 
     image_path: Path
     boxes: np.ndarray
     classes: np.ndarray
+    where: str = ""
+
+
+# Any finite number, not a bool (JSON true would otherwise pass as 1.0, and numpy reads "3" as 3.0).
+FINITE = Range()
+# The PNG IEND chunk (zero length, type, CRC): the last 12 bytes of every complete PNG.
+PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+# A field's value when its key is absent, so the error says "is missing" and not "is null".
+MISSING = object()
+
+
+def _shown(value: object) -> str:
+    """`value` as JSON, cut short: a field's bad value quoted in a one-line error."""
+    if value is MISSING:
+        return "missing"
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def field_error(where: str, name: str, value: object, expected: str) -> DatasetError:
+    """The one-line error for labels line `where` whose field `name` holds `value` instead of `expected`."""
+    return DatasetError(f"{where}: field '{name}' is {_shown(value)}, expected {expected}; fix the line or "
+                        "regenerate the dataset with `avsim detector make-data`")
 
 
 def parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, ...]) -> Record:
     """One JSONL line of a dataset (`where` names it in errors) as a `Record`: the image path under
     `data_dir`, the boxes (N, 4) xyxy [image px] and their class indices into `class_names`.
+
+    Every field's type and shape is checked here, so a hand-edited line is one DatasetError naming
+    FILE:LINE and the field, when the dataset is read, and never an internal error mid-training.
     """
     try:
         obj = json.loads(line)
-        image, boxes, classes = obj["image"], obj["boxes"], obj["classes"]
     except json.JSONDecodeError as exc:
         raise DatasetError(f"{where} is not valid JSON ({exc.msg}); regenerate the dataset") from None
-    except (KeyError, TypeError):
-        raise DatasetError(f"{where} needs the keys 'image', 'boxes' and 'classes'; regenerate the dataset") from None
+    if not isinstance(obj, dict) or not {"image", "boxes", "classes"} <= obj.keys():
+        raise DatasetError(f"{where} needs the keys 'image', 'boxes' and 'classes'; regenerate the dataset")
+    image, boxes, classes = obj["image"], obj["boxes"], obj["classes"]
+    if not isinstance(image, str) or not image.strip():
+        raise field_error(where, "image", image, "the image's path relative to the dataset folder")
+    if not isinstance(boxes, list):
+        raise field_error(where, "boxes", boxes, "a list of [x0, y0, x1, y1] boxes [image px]")
+    for i, box in enumerate(boxes):
+        if not isinstance(box, list) or len(box) != 4 or not all(FINITE.contains(v) for v in box):
+            raise field_error(where, f"boxes[{i}]", box, "[x0, y0, x1, y1], four finite numbers [image px]")
+        if not (box[0] < box[2] and box[1] < box[3]):
+            raise field_error(where, f"boxes[{i}]", box, "x0 < x1 and y0 < y1 (x1 < x0 or y1 < y0 is a flipped box)")
+    if not isinstance(classes, list) or not all(isinstance(c, str) for c in classes):
+        raise field_error(where, "classes", classes, f"a list of class names ({', '.join(class_names)})")
     if len(boxes) != len(classes):
         raise DatasetError(f"{where} has {len(boxes)} boxes but {len(classes)} classes; regenerate the dataset")
     unknown = sorted({c for c in classes if c not in class_names})
     if unknown:
         raise DatasetError(f"{where} has unknown class {unknown[0]!r}; expected one of {', '.join(class_names)}")
-    try:
-        box_array = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    except (ValueError, TypeError):
-        raise DatasetError(f"{where} has boxes that are not [x0, y0, x1, y1] numbers; regenerate the dataset") from None
-    if not np.isfinite(box_array).all() or (box_array[:, 2:] < box_array[:, :2]).any():
-        raise DatasetError(f"{where} has a non-finite box or one with x1 < x0 or y1 < y0; regenerate the dataset")
+    if not isinstance(obj.get("meta", {}), dict):  # training ignores meta, evaluation reads it by key
+        raise field_error(where, "meta", obj["meta"], "an object such as {\"camera\": \"front\", ...}")
+    box_array = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     class_array = np.array([class_names.index(c) for c in classes], dtype=np.int64)
-    return Record(data_dir / image, box_array, class_array)
+    return Record(data_dir / image, box_array, class_array, where)
+
+
+def _last_bytes(path: Path, size: int, n: int) -> bytes:
+    """The last `n` bytes of the file `path` of `size` bytes, without reading the rest."""
+    with path.open("rb") as f:
+        f.seek(max(0, size - n))
+        return f.read()
+
+
+def check_image_files(records: list[Record]) -> None:
+    """Refuse, in one line naming the labels line, an image that is missing, not a regular file,
+    empty, or a PNG cut short: before training or scoring starts, not an epoch into it.
+
+    Only the file's size and its last 12 bytes are read (a truncated PNG lacks its IEND chunk),
+    never the pixels: decoding every image twice would double the cost of reading a large
+    dataset, and an image that is complete but corrupt inside is still refused in one line
+    when it is read (`read_rgb`).
+    """
+    for record in records:
+        path = record.image_path
+        try:
+            if not path.is_file():
+                problem = "does not exist" if not path.exists() else "is not a regular file (a folder, device or pipe)"
+            elif (size := path.stat().st_size) == 0:
+                problem = "is empty"
+            elif path.suffix.lower() == ".png" and _last_bytes(path, size, len(PNG_END)) != PNG_END:
+                problem = "is cut short (it has no PNG end chunk)"
+            else:
+                continue
+        except OSError as exc:
+            raise DatasetError(f"{record.where}: cannot read image {path} ({exc.strerror})") from None
+        raise DatasetError(f"{record.where}: image {path} {problem}; restore it, drop the line, or regenerate the "
+                           "dataset with `avsim detector make-data`")
 
 
 def split_path(data_dir: str | Path, split: str) -> Path:
@@ -131,6 +200,7 @@ class SignDataset(Dataset):
                  augment: bool = False, seed: int = 0, augment_config: AugmentConfig = AugmentConfig(),
                  class_names: tuple[str, ...] = SIGN_CLASSES) -> None:
         self.records = read_records(data_dir, split, class_names)
+        check_image_files(self.records)  # a missing image is refused now, not when an epoch reaches it
         self.input_size = (int(input_size[0]), int(input_size[1]))
         self.augment = augment
         self.seed = int(seed)

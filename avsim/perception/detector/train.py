@@ -38,7 +38,7 @@ from avsim.perception.detector.data import SignDataset, collate
 from avsim.perception.detector.device import check_device
 from avsim.perception.detector.ema import ModelEMA
 from avsim.perception.ap import mean_ap
-from avsim.perception.detector.train_args import add_train_arguments
+from avsim.perception.detector.train_args import INPUT_SIZE_MULTIPLE_PX, MAX_INPUT_SIDE_PX, add_train_arguments
 from avsim.perception.detector.map50 import evaluate_map50
 from avsim.perception.detector.loss import LossWeights, compute_loss
 from avsim.perception.detector.model import DEPLOY_INPUT_SIZE, build_detector
@@ -92,27 +92,35 @@ def _check_resumable(meta: dict[str, Any], saved: dict[str, Any], path: Path) ->
 
 def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_size: int = 16, lr: float = 2e-3,
           seed: int = 0, resume: bool = False, input_size: tuple[int, int] = DEPLOY_INPUT_SIZE, log_every: int = 50,
-          device: str = "cpu", *, width_mult: float = 1.0, depth: int = 1, act: str = "leaky_relu",
+          device: str = "cpu", *, overwrite: bool = False, width_mult: float = 1.0, depth: int = 1, act: str = "leaky_relu",
           weight_decay: float = 0.05, warmup_steps: int | None = None, min_lr_ratio: float = 0.05,
           ema_decay: float = 0.9995, grad_clip_norm: float = 10.0, loss_weights: LossWeights = LossWeights(),
           progress: bool = True) -> dict[str, Any]:
     """Train on DIR/train.jsonl, validate on DIR/val.jsonl, checkpoint to `out_path` every epoch.
 
+    An existing `out_path` is continued (resume) or replaced (overwrite), and refused with neither,
+    once the dataset (every label line and image file) has been checked and before any training.
+
     epochs: total epochs (also when resuming); lr: peak AdamW learning rate;
-    input_size: (W_in, H_in), multiples of 32; log_every: steps between log lines (0: none);
+    input_size: (W_in, H_in), multiples of 32 up to 4096; log_every: steps between log lines (0: none);
     warmup_steps: None for min(1000, total_steps // 10).
     Returns {"out_path", "epochs", "history": per-epoch {"epoch", loss terms, "lr", "map50", "mAP50", "seconds"}}.
     """
     if epochs < 1 or batch_size < 1 or lr <= 0 or log_every < 0:
         raise ConfigError(f"need epochs >= 1, batch_size >= 1, lr > 0, log_every >= 0; got {epochs}, {batch_size}, {lr}, {log_every}")
-    if len(input_size) != 2 or any(int(v) <= 0 or int(v) % 32 for v in input_size):
-        raise ConfigError(f"input size must be two positive multiples of 32 (W_in, H_in), got {tuple(input_size)}")
+    if len(input_size) != 2 or any(int(v) % INPUT_SIZE_MULTIPLE_PX or not INPUT_SIZE_MULTIPLE_PX <= int(v) <= MAX_INPUT_SIDE_PX
+                                   for v in input_size):
+        raise ConfigError(f"input size must be two multiples of {INPUT_SIZE_MULTIPLE_PX} in [{INPUT_SIZE_MULTIPLE_PX}, "
+                          f"{MAX_INPUT_SIDE_PX}] px (W_in, H_in), got {tuple(input_size)}")
     input_size = (int(input_size[0]), int(input_size[1]))
     data_dir, out_path = Path(data_dir), Path(out_path)
     train_set = SignDataset(data_dir, "train", input_size, augment=True, seed=seed)
     if len(train_set) == 0:
         raise ConfigError(f"{data_dir / 'train.jsonl'} has no images; generate the dataset first")
     val_set = SignDataset(data_dir, "val", input_size) if (data_dir / "val.jsonl").is_file() else None
+    if out_path.exists() and not (resume or overwrite):  # a finished checkpoint, or a file that is not one at all
+        raise ConfigError(f"--out {out_path} already exists; pass --resume to continue training it, --overwrite to "
+                          "replace it, or choose another --out")
 
     arch = {"width_mult": float(width_mult), "depth": int(depth), "num_classes": len(SIGN_CLASSES), "act": act}
     with torch.random.fork_rng(devices=[]):
@@ -193,19 +201,14 @@ def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_siz
 
 
 def run_from_args(args: argparse.Namespace) -> int:
-    """Train as `avsim detector train`'s parsed `args` ask (input size, device and data checked first);
+    """Train as `avsim detector train`'s parsed `args` ask (device, data and an existing --out checked first);
     returns the exit status. Ctrl-C says where the last finished epoch is.
     """
-    if args.input_size is None:
-        args.input_size = f"{DEPLOY_INPUT_SIZE[0]}x{DEPLOY_INPUT_SIZE[1]}"
-    width, sep, height = str(args.input_size).lower().partition("x")
-    if not sep or not width.isdigit() or not height.isdigit():
-        raise ConfigError(f"--input-size expects WxH, e.g. 640x480, got '{args.input_size}'")
     check_device(args.device)  # a device this torch build lacks is one line, before the data is read
     try:
         result = train(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
-                       resume=args.resume, input_size=(int(width), int(height)), log_every=args.log_every,
-                       device=args.device, width_mult=args.width_mult, progress=not args.no_progress)
+                       resume=args.resume, input_size=args.input_size or DEPLOY_INPUT_SIZE, log_every=args.log_every,
+                       device=args.device, overwrite=args.overwrite, width_mult=args.width_mult, progress=not args.no_progress)
     except KeyboardInterrupt:
         kept = (f"the last finished epoch is in {args.out}; resume with the same command and --resume"
                 if Path(args.out).is_file() else "no epoch had finished, so there is nothing to resume")

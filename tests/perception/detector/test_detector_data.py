@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import cv2
@@ -86,19 +87,58 @@ def test_boxes_mostly_outside_the_crop_are_dropped(tmp_path):
     ("{not json", "not valid JSON"),
     ('{"image": "a.png", "boxes": [[0, 0, 1, 1]], "classes": ["pizza"]}', "unknown class 'pizza'"),
     ('{"image": "a.png", "boxes": [[0, 0, 1, 1]], "classes": []}', "1 boxes but 0 classes"),
-    ('{"image": "a.png", "boxes": [[5, 0, 1, 1]], "classes": ["yield"]}', "x1 < x0"),
+    ('{"image": "a.png", "boxes": [[5, 0, 1, 1]], "classes": ["yield"]}', "'boxes[0]' is [5, 0, 1, 1], expected x0 < x1"),
     ('{"boxes": []}', "needs the keys"),
+    ('["image", "boxes", "classes"]', "needs the keys"),
+    # Wrong types, each an internal error (TypeError) before these checks:
+    ('{"image": 5, "boxes": [], "classes": []}', "field 'image' is 5"),
+    ('{"image": "a.png", "boxes": [[0, 0, 1, 1]], "classes": [["stop_sign"]]}', "field 'classes' is [[\"stop_sign\"]]"),
+    ('{"image": "a.png", "boxes": 5, "classes": 5}', "field 'boxes' is 5"),
+    # Numbers numpy would have read anyway ("1" as 1.0, true as 1.0), and two boxes in one:
+    ('{"image": "a.png", "boxes": [["0", 0, 1, 1]], "classes": ["yield"]}', "field 'boxes[0]'"),
+    ('{"image": "a.png", "boxes": [[true, 0, 1, 1]], "classes": ["yield"]}', "field 'boxes[0]'"),
+    ('{"image": "a.png", "boxes": [[0, 0, 1, 1, 2, 2, 3, 3]], "classes": ["yield"]}', "field 'boxes[0]'"),
+    ('{"image": "a.png", "boxes": [[0, 0, 1, NaN]], "classes": ["yield"]}', "four finite numbers"),
+    ('{"image": "a.png", "boxes": [[0, 0, 0, 1]], "classes": ["yield"]}', "x0 < x1"),  # no width: nothing to learn
+    ('{"image": "a.png", "boxes": [], "classes": [], "meta": "front"}', "field 'meta' is \"front\""),
 ])
 def test_malformed_lines_raise_one_line_errors(tmp_path, line, match):
-    (tmp_path / "train.jsonl").write_text(line + "\n")
-    with pytest.raises(DatasetError, match=match) as info:
+    (tmp_path / "train.jsonl").write_text('{"image": "a.png", "boxes": [], "classes": []}\n' + line + "\n")
+    with pytest.raises(DatasetError, match=re.escape(match)) as info:
         SignDataset(tmp_path, "train")
     assert isinstance(info.value, AvsimError) and "\n" not in str(info.value)
+    assert "train.jsonl:2" in str(info.value)  # the file and line to fix
+
+
+def _png(root: Path, rel: str) -> Path:
+    (root / rel).parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(root / rel), np.zeros((64, 64, 3), np.uint8))
+    return root / rel
 
 
 def test_missing_split_and_missing_image(tmp_path):
     with pytest.raises(DatasetError, match="train.jsonl is missing"):
         SignDataset(tmp_path, "train")
-    (tmp_path / "train.jsonl").write_text('{"image": "gone.png", "boxes": [], "classes": []}\n')
-    with pytest.raises(DatasetError, match="gone.png is missing or unreadable"):
-        SignDataset(tmp_path, "train")[0]
+    _png(tmp_path, "a.png")
+    (tmp_path / "train.jsonl").write_text('{"image": "a.png", "boxes": [], "classes": []}\n'
+                                          '{"image": "gone.png", "boxes": [], "classes": []}\n')
+    # Refused when the dataset is read, not when an epoch reaches the image.
+    with pytest.raises(DatasetError, match=r"train.jsonl:2: image .*gone.png does not exist"):
+        SignDataset(tmp_path, "train")
+
+
+@pytest.mark.parametrize("damage, match", [
+    (lambda path: path.write_bytes(b""), "is empty"),
+    (lambda path: path.write_bytes(path.read_bytes()[:-20]), "is cut short"),
+    (lambda path: (path.unlink(), path.mkdir()), "is not a regular file"),
+])
+def test_damaged_images_are_refused_before_any_is_read(tmp_path, damage, match):
+    for name in ("a.png", "b.png"):
+        _png(tmp_path, f"images/{name}")
+    (tmp_path / "val.jsonl").write_text("".join(json.dumps({"image": f"images/{name}", "boxes": [], "classes": []}) + "\n"
+                                                for name in ("a.png", "b.png")))
+    assert len(SignDataset(tmp_path, "val")) == 2  # complete PNGs pass
+    damage(tmp_path / "images/b.png")
+    with pytest.raises(DatasetError, match=f"val.jsonl:2: image .*b.png {match}") as info:
+        SignDataset(tmp_path, "val")
+    assert "\n" not in str(info.value)

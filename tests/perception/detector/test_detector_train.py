@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 import torch
 
 from avsim.perception.detector import train as train_module
+from avsim.perception.detector.data import DatasetError
 from avsim.perception.detector.train import TrainingError, lr_at, main, train
 from avsim.perception.detector.weights import load_weights
 
@@ -113,6 +118,61 @@ def test_cli_trains_and_reports_bad_input_in_one_line(synthetic_dataset, tmp_pat
     assert out.is_file()
     assert main(args + ["--resume"]) == 0  # already complete: nothing to do
     assert main(["--data", str(tmp_path / "nowhere"), "--out", str(out), "--epochs", "1", "--seed", "0"]) == 2
-    assert main(args[:-3] + ["--input-size", "300x200"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 2 and "avsim detector make-data --out" in err[0] and "multiples of 32" in err[1]
+    assert len(err) == 1 and "avsim detector make-data --out" in err[0]
+
+
+@pytest.mark.parametrize("size", ["300x200", "64000x64000", "4128x480", "0x480", "640"])
+def test_input_size_is_refused_by_argparse_in_one_line(tmp_path, capsys, size):
+    # 64000x64000 passed the multiple-of-32 check and ended in an OpenCV out-of-memory error.
+    with pytest.raises(SystemExit) as info:
+        main(["--data", str(tmp_path), "--out", str(tmp_path / "w.pt"), "--input-size", size])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert info.value.code == 2 and len(err) == 1 and "--input-size" in err[0]
+    assert "multiple of 32 in [32, 4096]" in err[0] or "expects WxH" in err[0]
+
+
+def _tiny_dataset(root: Path, val_images: tuple[str, ...] = ("v.png",)) -> Path:
+    """One 64x64 training image and the validation lines `val_images` (only v.png is written)."""
+    (root / "images").mkdir(parents=True)
+    for name in ("t.png", "v.png"):
+        cv2.imwrite(str(root / "images" / name), np.zeros((64, 64, 3), np.uint8))
+    line = lambda name: json.dumps({"image": f"images/{name}", "boxes": [[8, 8, 24, 24]], "classes": ["yield"]}) + "\n"
+    (root / "train.jsonl").write_text(line("t.png"))
+    (root / "val.jsonl").write_text("".join(line(name) for name in val_images))
+    return root
+
+
+@pytest.fixture
+def no_training(monkeypatch):
+    """Fail the test if a training step runs."""
+    def _boom(*args, **kwargs):
+        raise AssertionError("training started before the bad input was refused")
+
+    monkeypatch.setattr(train_module, "compute_loss", _boom)
+
+
+def test_a_missing_validation_image_is_refused_before_the_first_epoch(tmp_path, no_training):
+    # It used to be found at validation, after a whole epoch of training.
+    data = _tiny_dataset(tmp_path / "d", val_images=("v.png", "gone.png"))
+    with pytest.raises(DatasetError, match=r"val.jsonl:2: image .*gone.png does not exist"):
+        train(data, tmp_path / "w.pt", epochs=1, input_size=(64, 64), progress=False)
+    assert not (tmp_path / "w.pt").exists()
+
+
+def test_an_existing_out_is_refused_without_resume_or_overwrite(tmp_path, capsys, monkeypatch):
+    data = _tiny_dataset(tmp_path / "d")
+    out = tmp_path / "w.pt"
+    out.write_text("a user's file")
+    args = ["--data", str(data), "--out", str(out), "--epochs", "1", "--input-size", "64x64", "--width-mult", "0.125",
+            "--log-every", "0", "--no-progress"]
+    with monkeypatch.context() as patch:
+        patch.setattr(train_module, "compute_loss", lambda *a, **k: pytest.fail("trained over an existing --out"))
+        assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "already exists" in err[0] and "--resume" in err[0] and "--overwrite" in err[0]
+    assert out.read_text() == "a user's file"
+    assert main(args + ["--overwrite"]) == 0  # said explicitly: replaced by a checkpoint
+    assert torch.load(out, weights_only=True)["epoch"] == 1
+    with pytest.raises(SystemExit):  # continue it or replace it, not both
+        main(args + ["--overwrite", "--resume"])
