@@ -405,3 +405,81 @@ AUDIT_2026_11_28 = {
 @pytest.mark.parametrize("case", list(AUDIT_2026_11_28.values()), ids=list(AUDIT_2026_11_28))
 def test_what_an_audit_found_is_refused_before_the_work(case, tmp_path, capsys, monkeypatch, no_work):
     _run_case(case, tmp_path, capsys, monkeypatch)
+
+
+# ---- a third audit (2026-12-03): the results folder, checked before the first run ----------------------------
+# `--workers 1` runs in this process, where `no_work` stops a run: before the fixes each case ran its runs (and
+# failed them, exit 1) or wrote its report.
+
+BOARD = """title = "tiny"
+[defaults]
+scenario = { town = "town07", placement = "standard", start_dist_m = 60 }
+perception = { kind = "oracle" }
+[conditions.clean]
+scenario = { sign = "clean" }
+[conditions.strongest]
+scenario = { sign = "yang" }
+[[defences]]
+name = "baseline"
+policy = { name = "baseline" }
+adaptive = { scenario = { sign = "yang" } }
+[[places]]
+town = "town07"
+placement = "standard"
+quick_seeds = 1
+"""
+OTHER_SWEEP = SMOKE.read_text().replace("[40, 60]", "[30, 50]")
+SWEEP_FOLDER = {"out/sweep.toml": SMOKE.read_text(), "out/results.jsonl": _record(0)}  # a smoke sweep's, stopped
+BATCH = ["--workers", "1", "--no-progress"]
+EXPERIMENT = 'seeds = 1\n[[cells]]\nname = "a"\nperception = { kind = "oracle" }\n'
+REPRODUCED = {"e.toml": EXPERIMENT, "r/runs.jsonl": ""}  # a reproduction stopped before its first run
+
+AUDIT_2026_12_03 = {
+    "sweep --rrd all: OUT/rrd is a file": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--rrd", "all", *BATCH],
+                                               "out/rrd is a file", files={"out/rrd": "x"}),
+    "sweep --mcap all: OUT/mcap is a file": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--mcap", "all", *BATCH],
+                                                 "out/mcap is a file", files={"out/mcap": "x"}),
+    "sweep --rrd all: OUT/rrd/<sweep> is a file": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/out", "--rrd", "all", *BATCH], "rrd/sweep_smoke is a file",
+        files={"out/rrd/sweep_smoke": "x"}),
+    "leaderboard --rrd all: OUT/rrd is a file": Case(
+        ["leaderboard", "{tmp}/b.toml", "--quick", "--out", "{tmp}/out", "--rrd", "all", *BATCH], "out/rrd is a file",
+        files={"b.toml": BOARD, "out/rrd": "x"}),
+    "reproduce --resume --rrd all: FOLDER/rrd is a file": Case(
+        ["reproduce", "--experiments", "{tmp}/e.toml", "--resume", "{tmp}/r", "--rrd", "all", *BATCH], "r/rrd is a file",
+        files={**REPRODUCED, "r/rrd": "x"}),
+    "sweep --resume with another sweep file": Case(["sweep", "{tmp}/other.toml", "--out", "{tmp}/out", "--resume", *BATCH],
+                                                   "another plan", files={**SWEEP_FOLDER, "other.toml": OTHER_SWEEP}),
+    "leaderboard --resume of a sweep's folder": Case(
+        ["leaderboard", "{tmp}/b.toml", "--quick", "--out", "{tmp}/out", "--resume", *BATCH],
+        "holds the results of avsim sweep", files={**SWEEP_FOLDER, "b.toml": BOARD}),
+    "sweep into a reproduction's folder": Case(["sweep", str(SMOKE), "--out", "{tmp}/r", *BATCH],
+                                               "holds the results of avsim reproduce", files=REPRODUCED),
+    "sweep --resume of a folder that does not exist": Case(
+        ["sweep", str(SMOKE), "--out", "{tmp}/nowhere", "--resume", *BATCH], "no such folder"),
+    "leaderboard --resume of a folder that does not exist": Case(
+        ["leaderboard", "{tmp}/b.toml", "--quick", "--out", "{tmp}/nowhere", "--resume", *BATCH], "no such folder",
+        files={"b.toml": BOARD}),
+    "sweep: OUT/.avsim.lock is a folder": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", *BATCH], ".avsim.lock",
+                                               files={"out/.avsim.lock/keep": ""}),
+    "sweep: OUT/summary.md is a folder": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--rrd", "none", *BATCH],
+                                              "summary.md is a folder", files={"out/summary.md/keep": ""}),
+    "sweep: OUT/manifest.json is a folder": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--rrd", "none", *BATCH],
+                                                 "manifest.json is a folder", files={"out/manifest.json/keep": ""}),
+    "sweep: OUT/sweep.toml is a folder": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--rrd", "none", *BATCH],
+                                              "sweep.toml is a folder", files={"out/sweep.toml/keep": ""}),
+    "leaderboard: OUT/leaderboard.png is a folder": Case(
+        ["leaderboard", "{tmp}/b.toml", "--quick", "--out", "{tmp}/out", "--rrd", "none", *BATCH],
+        "leaderboard.png is a folder", files={"b.toml": BOARD, "out/leaderboard.png/keep": ""}),
+    "reproduce --resume: FOLDER/report.md is a folder": Case(
+        ["reproduce", "--experiments", "{tmp}/e.toml", "--resume", "{tmp}/r", "--rrd", "none", *BATCH],
+        "report.md is a folder", files={**REPRODUCED, "r/report.md/keep": ""}),
+    "leaderboard --quick with every quick_seeds 0": Case(
+        ["leaderboard", "{tmp}/b.toml", "--quick", "--out", "{tmp}/out", *BATCH], "no run to make",
+        files={"b.toml": BOARD.replace("quick_seeds = 1", "quick_seeds = 0")}),
+}
+
+
+@pytest.mark.parametrize("case", list(AUDIT_2026_12_03.values()), ids=list(AUDIT_2026_12_03))
+def test_the_results_folder_is_checked_before_the_first_run(case, tmp_path, capsys, monkeypatch, no_work):
+    _run_case(case, tmp_path, capsys, monkeypatch)

@@ -20,6 +20,9 @@ from avsim.experiments import study_figures
 from avsim.experiments.report_cells import Cells, origin_before_sign_m
 from avsim.experiments.spec import Experiment
 
+# The figures' files in the results folder, which `avsim reproduce` checks can be written before its first run.
+SPEED_FIGURE, STOPS_FIGURE, CONFIDENCE_FIGURE = "speed_vs_distance.png", "stop_positions.png", "confidence_vs_distance.png"
+FIGURE_FILES = (SPEED_FIGURE, STOPS_FIGURE, CONFIDENCE_FIGURE)
 _STOP_LINE_BEFORE_SIGN_M = 1.0  # the towns' road convention (docs/architecture.md: the sign stands 1 m past the line)
 _DIST_BIN_M = 2.0
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf")
@@ -74,7 +77,7 @@ def _speed_vs_distance(out_dir: Path, experiment: Experiment, cells: Cells) -> P
     ax.set_title(f"{experiment.title}: one line per seed")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
-    return _save(fig, out_dir / "speed_vs_distance.png")
+    return _save(fig, out_dir / SPEED_FIGURE)
 
 
 def _stop_positions(out_dir: Path, experiment: Experiment, cells: Cells) -> Path:
@@ -100,7 +103,7 @@ def _stop_positions(out_dir: Path, experiment: Experiment, cells: Cells) -> Path
     ax.set_title(f"{experiment.title}: where the car stopped", fontsize=9)
     ax.grid(alpha=0.3, axis="x")
     ax.legend(fontsize=7, loc="lower right")
-    return _save(fig, out_dir / "stop_positions.png")
+    return _save(fig, out_dir / STOPS_FIGURE)
 
 
 def _confidence_series(by_kind: dict[str, list[Experiment]], cells: Cells) -> dict[str, list[tuple[str, list[dict]]]]:
@@ -150,4 +153,4 @@ def _confidence_vs_distance(out_dir: Path, series: dict[str, list[tuple[str, lis
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     axes[0].set_ylabel(f"best stop-sign confidence, mean per {_DIST_BIN_M:g} m (0 = missed)")
-    return _save(fig, out_dir / "confidence_vs_distance.png")
+    return _save(fig, out_dir / CONFIDENCE_FIGURE)

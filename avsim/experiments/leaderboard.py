@@ -287,9 +287,18 @@ def load_leaderboard(path: str | Path = DEFAULT_FILE, *, quick: bool = False, ye
                         places, availability, dotted_keys(defaults), set_items=tuple(flat_items(overrides).items()))
     refuse_layered(path, keys_given, board.layers_over_base())
     check_plan_size(board.size(quick), f"{path}: {len(defences)} defences", yes=yes)
+    check_runs_any(board, quick)
     _check_runs(board)
     _check_keys_read(board, defaults, keys_given)
     return board
+
+
+def check_runs_any(board: Leaderboard, quick: bool) -> None:
+    """A one-line ConfigError when the plan has no run: with --quick, every place's and availability scenario's
+    quick_seeds may be 0, and a board of no runs would still write a whole report of empty rows."""
+    if board.size(quick) == 0:
+        raise ConfigError(f"{board.path}: with --quick it has no run to make (every place's and availability "
+                          "scenario's quick_seeds is 0); give one of them quick_seeds = 1, or leave out --quick")
 
 
 def _parse_conditions(raw: Any) -> dict[str, Condition]:

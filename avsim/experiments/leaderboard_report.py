@@ -37,6 +37,7 @@ from avsim.stats import rate_with_interval, wilson_interval
 
 Record = dict[str, Any]
 ATTACKED = ("strongest", "adaptive")
+REPORT_FILE, FIGURE_FILE = "leaderboard.md", "leaderboard.png"  # in the results folder
 
 
 @dataclass(frozen=True)
@@ -203,7 +204,7 @@ def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Iterable[L
     """Write `out_dir/leaderboard.md` and `leaderboard.png`; returns the markdown's path."""
     results = Results(runs, records)
     table = rows(board, results)
-    figure = safety_availability_figure(out_dir / "leaderboard.png", table)
+    figure = safety_availability_figure(out_dir / FIGURE_FILE, table)
     notes = [f"- `{name}`: {board.conditions[name].note}" for name in board.conditions if board.conditions[name].note]
     notes += [f"- `{d.name}`, its own adaptive attack: {d.adaptive.note}" for d in board.defences if d.adaptive.note]
     lines = [
@@ -237,7 +238,7 @@ def write_leaderboard_report(out_dir: Path, board: Leaderboard, runs: Iterable[L
     failed = results.failed()
     if failed:
         lines += ["## Failed runs", "", *_table(["run", "seed", "error"], [[r["cell"], str(r["seed"]), r["error"]] for r in failed])]
-    path = out_dir / "leaderboard.md"
+    path = out_dir / REPORT_FILE
     write_text_atomic(path, "\n".join(lines))
     return path
 

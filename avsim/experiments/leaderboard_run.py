@@ -19,16 +19,22 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
 from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
-from avsim.experiments.leaderboard import Leaderboard
-from avsim.experiments.leaderboard_report import write_leaderboard_report
+from avsim.experiments.leaderboard import Leaderboard, check_runs_any
+from avsim.experiments.leaderboard_report import FIGURE_FILE, REPORT_FILE, write_leaderboard_report
 from avsim.experiments.output_lock import locked_output
-from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
+from avsim.experiments.recordings import (DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, recording_folders,
+                                          with_recordings)
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
-from avsim.experiments.folder_terms import check_resumed_terms, record_terms
-from avsim.experiments.set_overrides import flags_of_items
+from avsim.experiments.folder_setting import SETTING_FILE
+from avsim.experiments.folder_terms import check_made_by, check_resumed_plan, check_resumed_terms, record_terms
+from avsim.experiments.set_overrides import SET_FILE, flags_of_items
 from avsim.experiments.spec import check_renderer
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
+
+# Every file a leaderboard writes into its folder (`avsim.experiments.leaderboard`'s docstring), checked before the
+# first run: the report is written only after the last one.
+FOLDER_FILES = ("leaderboard.toml", RESULTS_FILE, "manifest.json", REPORT_FILE, FIGURE_FILE, SET_FILE, SETTING_FILE)
 
 
 def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
@@ -41,12 +47,15 @@ def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = Fa
     check_backend(backend, address)
     check_renderer(board.base)  # a --setting's keys are in the base config, set after loading checked every run
     check_modes(rrd, mcap)
+    check_runs_any(board, quick)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
+    check_made_by(out, "avsim leaderboard")
     if resume:
         check_resumed_terms(out, board, "avsim leaderboard")
     # One command at a time in `out`; a folder made here and left without a record is removed.
-    with locked_output(out, f"avsim leaderboard {board.path} --out {out}", results_name=RESULTS_FILE):
+    with locked_output(out, f"avsim leaderboard {board.path} --out {out}", results_name=RESULTS_FILE,
+                       files=FOLDER_FILES, folders=recording_folders([board.name], rrd=rrd, mcap=mcap)):
         return _run_leaderboard_locked(board, out, quick=quick, workers=workers, resume=resume, progress=progress,
                                        backend=backend, address=address, batch=batch, rrd=rrd, mcap=mcap)
 
@@ -55,6 +64,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
                             progress: bool, backend: str, address: str | None, batch: int, rrd: str, mcap: str) -> Path:
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
+    check_resumed_plan(out, existing, board.path, board.name, "leaderboard.toml")
     # The distinct configs are built as the batch draws on them, never all at once.
     plan = board.plan(quick).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",

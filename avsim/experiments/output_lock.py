@@ -17,6 +17,11 @@ A folder this command made is removed again when the command fails before any ru
 recorded in `results_name` (a Ray cluster that cannot be reached, a bad resume), so a failed
 start leaves no empty results folder behind.
 
+A command names the files and folders it will write into the folder (`files`, `folders`), and
+they are checked once the lock is held, before the block runs: a summary.md that is a folder, or
+an OUT/rrd that is a file, would otherwise be found after hours of runs, when the report or the
+first recording is written.
+
 A command that builds its output elsewhere and renames it into place (`avsim detector
 make-data`) holds `locked_sibling(out, ...)` instead: the lock file `.<name>.avsim.lock` sits
 beside `out`, which may not exist yet and is replaced whole.
@@ -30,7 +35,7 @@ import fcntl
 import os
 import shutil
 import socket
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from avsim.errors import OutputError
@@ -39,11 +44,14 @@ LOCK_NAME = ".avsim.lock"
 
 
 @contextlib.contextmanager
-def locked_output(folder: str | os.PathLike, command: str, *, results_name: str | None = None) -> Iterator[Path]:
+def locked_output(folder: str | os.PathLike, command: str, *, results_name: str | None = None,
+                  files: Iterable[str] = (), folders: Iterable[str] = ()) -> Iterator[Path]:
     """Hold `folder` (made if missing) for the duration of the block; yields it.
 
     Raises OutputError in one line when another live process holds it. results_name: the
     file whose records make the folder worth keeping when the block fails (see the module docstring).
+    files, folders: paths relative to `folder` that the block will write (`check_writable`), checked
+    before it runs.
     """
     folder = Path(folder)
     created = not folder.exists()
@@ -59,6 +67,7 @@ def locked_output(folder: str | os.PathLike, command: str, *, results_name: str 
                 folder.rmdir()
         raise
     try:
+        check_writable(folder, files, folders)
         yield folder
     except BaseException:
         _remove_if_unused(folder, created, results_name)  # still holding the lock: no one else writes here
@@ -85,11 +94,38 @@ def locked_sibling(output: str | os.PathLike, command: str) -> Iterator[Path]:
         _release(lock, fd)
 
 
+def check_writable(folder: Path, files: Iterable[str] = (), folders: Iterable[str] = ()) -> None:
+    """A one-line OutputError when one of `files` (paths relative to `folder`) cannot be written as a
+    file, or one of `folders` made as a folder: something of the other kind, or a device or pipe, is
+    in its place or in the place of a folder above it. What is missing passes: it will be made."""
+    for name, want_folder in [*((name, False) for name in files), *((name, True) for name in folders)]:
+        path = folder
+        parts = Path(name).parts
+        for depth, part in enumerate(parts, 1):
+            path = path / part
+            is_folder = want_folder or depth < len(parts)
+            if not path.exists():
+                break  # made when it is written, with any folder below it
+            if is_folder and not path.is_dir():
+                raise OutputError(f"{path} is a file, where this command makes a folder; remove or rename it, "
+                                  "or choose another --out")
+            if not is_folder and path.is_dir():
+                raise OutputError(f"{path} is a folder, where this command writes a file; remove or rename it, "
+                                  "or choose another --out")
+            if not is_folder and not path.is_file():
+                raise OutputError(f"{path} is not a regular file (a device or a pipe), and this command writes a "
+                                  "file there; remove it, or choose another --out")
+
+
 def _acquire(path: Path, command: str, held: Path) -> int:
     """An open, flock-ed descriptor of the lock file `path`, which then names this process; held:
     the output it guards, for the refusal's message."""
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:  # a folder of that name, or no right to make the file
+            raise OutputError(f"cannot lock {held}: cannot open its lock file {path} ({exc.strerror or exc}); "
+                              "remove what is there, or choose another --out") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:

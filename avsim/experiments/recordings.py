@@ -50,6 +50,14 @@ def recording_flags(rrd: str, mcap: str) -> str:
                    if mode != default)
 
 
+def recording_folders(experiments: Iterable[str], *, rrd: str, mcap: str) -> list[str]:
+    """The folders, relative to the batch folder, that `with_recordings` puts the recordings of these
+    experiments' runs in ("rrd/sweep_smoke"): for `locked_output` to check before the first run, since
+    a recording is written only as its run ends."""
+    return [f"{KINDS[kind][0]}/{experiment}" for kind, mode in (("rrd", rrd), ("mcap", mcap)) if mode != "none"
+            for experiment in experiments]
+
+
 def slug(name: str) -> str:
     """A cell name as a file name: "attacked sign, adjusted" -> "attacked_sign_adjusted"."""
     return "_".join("".join(c if c.isalnum() else " " for c in name.lower()).split())

@@ -40,7 +40,9 @@ from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
 from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
-from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
+from avsim.experiments.figures import FIGURE_FILES
+from avsim.experiments.recordings import (DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, recording_folders,
+                                          with_recordings)
 from avsim.experiments.results_file import read_records
 from avsim.experiments.resumable import manifest_history, run_resumable
 from avsim.experiments.run_task import RunSpec
@@ -48,7 +50,7 @@ from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan import Plan
 from avsim.experiments.plan_size import check_plan_size
 from avsim.experiments.render_setting import under_setting
-from avsim.experiments.set_overrides import check_resumed_set, experiment_with_set, flat_items, record_set, set_flags
+from avsim.experiments.set_overrides import SET_FILE, check_resumed_set, experiment_with_set, flat_items, record_set, set_flags
 from avsim.experiments.spec import Experiment, check_networks, check_renderer, check_run_names, load_experiment, located
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE, SETTINGS
@@ -190,8 +192,13 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         f"--setting {setting}" if setting != BASELINE else "", set_flags(overrides),
         f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address else "",
         recording_flags(rrd, mcap).strip()) if part)
-    # A start that fails before the first run (a Ray cluster that cannot be reached) leaves no new folder.
-    with locked_output(out, "avsim reproduce", results_name="runs.jsonl"):
+    # Every file it writes into the folder (the module docstring) is checked before the first run: a --resume
+    # folder may hold a folder where its report goes. A start that fails before the first run (a Ray cluster that
+    # cannot be reached) leaves no new folder.
+    files = ("runs.jsonl", "manifest.json", "report.md", SET_FILE, *FIGURE_FILES,
+             *(f"experiments/{experiment.path.name}" for experiment in experiments))
+    folders = recording_folders([experiment.path.stem for experiment in experiments], rrd=rrd, mcap=mcap)
+    with locked_output(out, "avsim reproduce", results_name="runs.jsonl", files=files, folders=folders):
         return _reproduce_into(out, experiments, existing, selection=selection, workers=workers, progress=progress,
                                backend=backend, address=address, started=started, started_at=started_at, batch=batch,
                                rrd=rrd, mcap=mcap, resumed=resume is not None, overrides=overrides)

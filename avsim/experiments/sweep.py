@@ -66,12 +66,15 @@ from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
 from avsim.experiments.output_lock import locked_output
 from avsim.experiments.plan_size import check_plan_size
-from avsim.experiments.recordings import DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, with_recordings
+from avsim.experiments.recordings import (DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, recording_folders,
+                                          with_recordings)
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
-from avsim.experiments.folder_terms import check_resumed_terms, record_terms
-from avsim.experiments.set_overrides import checked_set, flags_of_items, flat_items, refuse_layered, set_title
+from avsim.experiments.folder_setting import SETTING_FILE
+from avsim.experiments.folder_terms import check_made_by, check_resumed_plan, check_resumed_terms, record_terms
+from avsim.experiments.set_overrides import SET_FILE, checked_set, flags_of_items, flat_items, refuse_layered, set_title
 from avsim.experiments.run_task import RunSpec
+from avsim.experiments.sweep_report import FIGURE_FILE
 from avsim.experiments.spec import as_table, check_networks, check_renderer, check_run_names, deep_merge, located, nested, read_run_file, reject_seed
 from avsim.metrics import write_json_atomic
 from avsim.realism.settings import BASELINE
@@ -81,6 +84,9 @@ DEFAULT_SEEDS = 1
 SIGN_KEY = "scenario.sign"
 
 Scalar = str | int | float | bool
+# Every file a sweep writes into its folder (the module docstring), checked before the first run: the report is
+# written only after the last one.
+FOLDER_FILES = ("sweep.toml", RESULTS_FILE, "manifest.json", "summary.md", FIGURE_FILE, SET_FILE, SETTING_FILE)
 
 
 @dataclass(frozen=True)
@@ -305,10 +311,12 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike, *, workers: int | None =
     check_modes(rrd, mcap)
     out = Path(out_dir)
     workers = resolve_workers(workers, address)
+    check_made_by(out, "avsim sweep")
     if resume:
         check_resumed_terms(out, sweep, "avsim sweep")
     # One command at a time in `out`; a folder made here and left without a record is removed.
-    with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE):
+    with locked_output(out, f"avsim sweep {sweep.path} --out {out}", results_name=RESULTS_FILE, files=FOLDER_FILES,
+                       folders=recording_folders([sweep.name], rrd=rrd, mcap=mcap)):
         return _run_sweep_locked(sweep, out, workers=workers, resume=resume, progress=progress, backend=backend,
                                  address=address, batch=batch, rrd=rrd, mcap=mcap)
 
@@ -319,6 +327,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
 
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
+    check_resumed_plan(out, existing, sweep.path, sweep.name, "sweep.toml")
     # The runs are built as the batch draws on them, never all at once (the plan's size and its
     # points' configs were checked when it was loaded); a record finds its grid point by its cell label.
     plan = sweep.plan().then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))

@@ -10,7 +10,7 @@ import pytest
 
 from avsim.errors import ConfigError
 from avsim.experiments.folder_setting import SETTING_FILE
-from avsim.experiments.folder_terms import check_resumed_terms, record_terms
+from avsim.experiments.folder_terms import check_made_by, check_resumed_plan, check_resumed_terms, record_terms
 from avsim.experiments.resumable import RESULTS_FILE
 from avsim.experiments.set_overrides import SET_FILE
 
@@ -59,3 +59,24 @@ def test_the_default_terms_leave_no_files(tmp_path):
     record_terms(tmp_path, MADE)
     record_terms(tmp_path, Terms())
     assert not (tmp_path / SETTING_FILE).exists() and not (tmp_path / SET_FILE).exists()
+
+
+def test_a_resume_takes_its_own_plan_edited_or_copied_and_refuses_another_plan_or_a_missing_folder(tmp_path):
+    plan = tmp_path / "speeds.toml"
+    plan.write_text("[grid]\n'scenario.speed_kmh' = [40, 60]\n")
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "sweep.toml").write_text(plan.read_text())
+    held = [{"experiment": "speeds", "spec_hash": "h0"}]
+    plan.write_text("[grid]\n'scenario.speed_kmh' = [40, 60, 80]\n")  # the same file, its grid grown
+    check_resumed_plan(folder, held, plan, "speeds", "sweep.toml")
+    check_resumed_plan(folder, held, folder / "sweep.toml", "sweep", "sweep.toml")  # the folder's own copy
+    other = tmp_path / "other.toml"
+    other.write_text("[grid]\n'scenario.speed_kmh' = [30, 50]\n")
+    with pytest.raises(ConfigError, match="holds the runs of 'speeds' .*another plan than .*other.toml"):
+        check_resumed_plan(folder, held, other, "other", "sweep.toml")
+    with pytest.raises(ConfigError, match="no such folder"):
+        check_resumed_terms(tmp_path / "typo", MADE, "avsim sweep")
+    check_made_by(folder, "avsim sweep")
+    with pytest.raises(ConfigError, match="holds the results of avsim sweep"):
+        check_made_by(folder, "avsim leaderboard")

@@ -14,7 +14,7 @@ from avsim.config import SimConfig
 from avsim.errors import ConfigError
 from avsim.experiments.render_setting import sweep_under_setting
 from avsim.experiments.results_file import read_records
-from avsim.experiments.sweep import load_sweep
+from avsim.experiments.sweep import FOLDER_FILES, load_sweep
 from avsim.experiments.sweep_report import front_measures, ordered_by_strength, run_cell_text, safety_map, sign_strength
 from avsim.realism.settings import SETTINGS
 
@@ -193,6 +193,13 @@ def test_the_smoke_sweep_writes_the_summary_figure_and_manifest(smoke_out):
     manifest = json.loads((smoke_out / "manifest.json").read_text())
     assert (manifest["runs"], manifest["ran"], manifest["failed"], manifest["workers"]) == (4, 4, 0, 1)
     assert (smoke_out / "sweep.toml").read_text() == SMOKE.read_text()
+
+
+def test_every_file_the_smoke_sweep_writes_is_one_it_checks_before_its_first_run(smoke_out):
+    # FOLDER_FILES is checked before the first run (a folder in a report file's place); a file missing from it
+    # would be found only after the last run.
+    assert {p.name for p in smoke_out.iterdir() if p.is_file()} <= set(FOLDER_FILES)
+    assert {p.name for p in smoke_out.iterdir() if p.is_dir()} <= {"rrd", "mcap"}  # `recording_folders`' own
 
 
 def test_a_second_sweep_into_the_same_folder_needs_resume_which_reuses_the_ok_runs(smoke_out, capsys):
