@@ -407,7 +407,7 @@ def test_what_an_audit_found_is_refused_before_the_work(case, tmp_path, capsys, 
     _run_case(case, tmp_path, capsys, monkeypatch)
 
 
-# ---- a third audit (2026-12-03): the results folder, checked before the first run ----------------------------
+# ---- a third audit (2026-12-02): the results folder, checked before the first run ----------------------------
 # `--workers 1` runs in this process, where `no_work` stops a run: before the fixes each case ran its runs (and
 # failed them, exit 1) or wrote its report.
 
@@ -434,7 +434,7 @@ BATCH = ["--workers", "1", "--no-progress"]
 EXPERIMENT = 'seeds = 1\n[[cells]]\nname = "a"\nperception = { kind = "oracle" }\n'
 REPRODUCED = {"e.toml": EXPERIMENT, "r/runs.jsonl": ""}  # a reproduction stopped before its first run
 
-AUDIT_2026_12_03 = {
+AUDIT_2026_12_02 = {
     "sweep --rrd all: OUT/rrd is a file": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--rrd", "all", *BATCH],
                                                "out/rrd is a file", files={"out/rrd": "x"}),
     "sweep --mcap all: OUT/mcap is a file": Case(["sweep", str(SMOKE), "--out", "{tmp}/out", "--mcap", "all", *BATCH],
@@ -480,6 +480,6 @@ AUDIT_2026_12_03 = {
 }
 
 
-@pytest.mark.parametrize("case", list(AUDIT_2026_12_03.values()), ids=list(AUDIT_2026_12_03))
+@pytest.mark.parametrize("case", list(AUDIT_2026_12_02.values()), ids=list(AUDIT_2026_12_02))
 def test_the_results_folder_is_checked_before_the_first_run(case, tmp_path, capsys, monkeypatch, no_work):
     _run_case(case, tmp_path, capsys, monkeypatch)
