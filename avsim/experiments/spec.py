@@ -149,6 +149,11 @@ def config_at_seed(config: SimConfig, vary: tuple[tuple[str, float, float], ...]
     return with_overrides(config, overrides)
 
 
+# A top-level key only one kind of file holds, and the command that runs that kind.
+FILE_KINDS = {"grid": "avsim sweep", "cells": "avsim reproduce", "defences": "avsim leaderboard"}
+KIND_COMMANDS = {"sweep": "avsim sweep", "experiment": "avsim reproduce", "leaderboard": "avsim leaderboard"}
+
+
 def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], default_seeds: int) -> tuple[dict[str, Any], str, int]:
     """Read a TOML file of runs (an experiment or a sweep): (the raw table, its title, its seeds).
 
@@ -162,6 +167,9 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
         raise ConfigError(f"{path}: {kind} file not found; check the path, or start from one of the files in "
                           f"{'experiments/sweeps/' if kind == 'sweep' else 'experiments/'}") from None
     except tomllib.TOMLDecodeError as exc:
+        if path.read_bytes().startswith(b"\xef\xbb\xbf"):  # tomllib's message would point at line 1, column 1
+            raise ConfigError(f"{path} starts with a UTF-8 byte-order mark, as some editors save text; save it as UTF-8 "
+                              "without one") from None
         # tomllib's message names the line and column: "... (at line 3, column 7)".
         raise ConfigError(f"{path}: malformed TOML: {exc}; fix that line (TOML syntax: https://toml.io)") from None
     except UnicodeDecodeError as exc:
@@ -174,6 +182,11 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
         raise ConfigError(f"{path}: cannot read {kind} file ({exc.strerror})") from None
 
     unknown = sorted(set(raw) - set(top_level_keys))
+    for key, command in FILE_KINDS.items():
+        if key in unknown and command != KIND_COMMANDS[kind]:
+            article = "an" if kind[0] in "aeiou" else "a"
+            raise ConfigError(f"{path} holds [{key}], so it is a file for `{command}`, not {article} {kind} file; run it "
+                              f"with `{command}`")
     if unknown:
         raise ConfigError(f"{path}: unknown top-level key '{unknown[0]}'; valid keys: {', '.join(top_level_keys)}")
     title = raw.get("title", path.stem)

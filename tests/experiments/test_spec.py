@@ -359,3 +359,23 @@ def _write(tmp_path: Path, text: str, name: str = "exp.toml") -> Path:
     path = tmp_path / name
     path.write_text("\n".join(line.strip() for line in text.splitlines()) + "\n")
     return path
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["sweep", str(EXPERIMENTS_DIR / "table1_clean_defended.toml")], "a file for `avsim reproduce`, not a sweep file"),
+    (["reproduce", "--experiments", str(EXPERIMENTS_DIR / "sweeps" / "sweep_smoke.toml")],
+     "a file for `avsim sweep`, not an experiment file"),
+    (["sweep", str(EXPERIMENTS_DIR / "leaderboards" / "defences.toml")], "a file for `avsim leaderboard`, not a sweep file"),
+])
+def test_a_file_given_to_another_command_names_the_command_that_runs_it(tmp_path, capsys, argv, named):
+    assert cli.main([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and named in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_file_saved_with_a_byte_order_mark_says_so(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (EXPERIMENTS_DIR / "table1_clean_defended.toml").read_bytes())
+    with pytest.raises(ConfigError, match="byte-order mark"):
+        load_experiment(path)
