@@ -397,8 +397,10 @@ AUDIT_2026_11_28 = {
         "does not run it", files={"w.pt": b"weights"}),
     "attack sweep --rrd without --closed-loop": Case(
         ["attack", "sweep", "--method", "yang", "--budgets", "0.1", "--rrd", "all", "--out", "{tmp}/out"], "add --closed-loop"),
-    "replay of a file that is no bag": Case(["replay", "{tmp}/image.png"], "cannot read bag",
-                                            files={"image.png": b"\x89PNG\r\n\x1a\n" + b"\x00" * 32}),
+    "replay of a file that is no bag": Case(["replay", "{tmp}/image.mcap"], "cannot read bag",
+                                            files={"image.mcap": b"\x89PNG\r\n\x1a\n" + b"\x00" * 32}),
+    "replay of a file without the .mcap suffix": Case(["replay", "{tmp}/run.bag"], "does not end in .mcap",
+                                                      files={"run.bag": b"\x89MCAP0\r\n" + b"\x00" * 32}),
 }
 
 

@@ -59,6 +59,9 @@ def replay(bag: str | os.PathLike, perception_overrides: Mapping[str, Any] | Non
         raise BagError(f"bag {path} does not exist; pass an .mcap file or a ROS bag folder")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise BagError(f"{path} is a folder without a metadata.yaml, so no ROS bag; pass an .mcap file or a ROS bag folder")
+    if path.is_file() and path.suffix.lower() != ".mcap":  # rosbags picks a lone file's reader by its suffix
+        raise BagError(f"bag {path} does not end in .mcap, the one bag file avsim reads alone; rename it to "
+                       f"{path.with_suffix('.mcap').name}, or pass its ROS bag folder")
     # rosbags' readers raise more than AnyReaderError on a cut or foreign file (its MCAP reader
     # reads past the end of a truncated one): only the bag's own reading is guarded by these.
     unreadable = (AnyReaderError, EOFError, IndexError, KeyError, TypeError, ValueError, struct.error)
