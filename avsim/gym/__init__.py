@@ -15,6 +15,10 @@ from avsim.gym.env import StopSignEnv
 ENV_ID = "avsim/StopSign-v0"
 
 if ENV_ID not in registry:  # importing twice (e.g. after importlib.reload) must not warn
-    register(id=ENV_ID, entry_point="avsim.gym.env:StopSignEnv", vector_entry_point="avsim.gym.vector:StopSignVectorEnv")
+    # Without Gymnasium's passive checker: in Gymnasium 1.4 it breaks every later step() once a first reset() has
+    # raised (a refused seed), as it then holds no reset data to compare the step's with. avsim's tests run
+    # Gymnasium's full `check_env` on the environment instead; `disable_env_checker=False` in `make` brings it back.
+    register(id=ENV_ID, entry_point="avsim.gym.env:StopSignEnv", vector_entry_point="avsim.gym.vector:StopSignVectorEnv",
+             disable_env_checker=True)
 
 __all__ = ["ENV_ID", "StopSignEnv"]

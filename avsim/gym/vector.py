@@ -32,10 +32,16 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
+from avsim.config import check_seed
 from avsim.errors import ConfigError
 from avsim.gym.env import StopSignEnv
 from avsim.lockstep import perceive_together
 from avsim.perception.factory import FrameDetectorCache
+
+
+# Each environment holds its own MuJoCo model, renderers and loop (about 130 MB with images): a bound that
+# catches a mistyped count before it builds for minutes and exhausts memory.
+MAX_NUM_ENVS = 256
 
 
 class StopSignVectorEnv(VectorEnv):
@@ -44,8 +50,8 @@ class StopSignVectorEnv(VectorEnv):
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        if not isinstance(num_envs, int) or num_envs < 1:
-            raise ConfigError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
+        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or not 1 <= num_envs <= MAX_NUM_ENVS:
+            raise ConfigError(f"num_envs must be a whole number in 1 .. {MAX_NUM_ENVS}, got {num_envs!r}")
         kwargs.pop("max_episode_steps", None)  # the episode length is the config's loop.max_time_s
         if kwargs.get("render_mode") is not None:
             raise ConfigError("the vector environment renders no frames; observe images with images=True")
@@ -65,8 +71,11 @@ class StopSignVectorEnv(VectorEnv):
         """Start an episode in every sub-environment (`seed`: an int gives env i seed + i, a list one
         seed each); the batched observations and infos.
         """
-        super().reset(seed=seed)
         seeds = _seeds(seed, self.num_envs)
+        for env_seed in seeds:  # every seed before any environment resets: a refusal leaves them all as they were
+            if env_seed is not None:
+                check_seed(env_seed, "reset(seed=...)'s seed of an environment (seed + i, or the list's)")
+        super().reset(seed=seeds[0])  # the vector's own generator, which Gymnasium seeds with an int
         infos: dict[str, Any] = {}
         for i, (env, env_seed) in enumerate(zip(self.envs, seeds)):
             infos = self._add_info(infos, env.begin_episode(env_seed, options), i)
@@ -77,6 +86,16 @@ class StopSignVectorEnv(VectorEnv):
         """One control step of every sub-environment with its action; a sub-environment whose episode
         ended on the previous step is reset instead (next-step autoreset).
         """
+        try:
+            values = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            values = np.full(0, np.nan)
+        if values.shape != self.action_space.shape or not np.isfinite(values).all():
+            # Checked for every environment before any steps: too few rows would leave the rest unstepped, unseen.
+            got = (repr(actions) if not values.size else f"shape {values.shape}" if values.shape != self.action_space.shape
+                   else "a value that is not finite")
+            raise ConfigError(f"actions must be an array of shape {self.action_space.shape} (one row of "
+                              f"{self.single_action_space.shape[0]} finite numbers per environment), got {got}")
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terminated = np.zeros(self.num_envs, dtype=np.bool_)
         truncated = np.zeros(self.num_envs, dtype=np.bool_)
@@ -111,9 +130,12 @@ def _seeds(seed: int | list[int | None] | None, count: int) -> list[int | None]:
     """Each environment's reset seed, by Gymnasium's vector convention."""
     if seed is None:
         return [None] * count
-    if isinstance(seed, (int, np.integer)):
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
         return [int(seed) + i for i in range(count)]
-    seeds = list(seed)
+    if isinstance(seed, (str, bytes, bool, float)) or not hasattr(seed, "__len__"):
+        raise ConfigError(f"reset(seed=...) takes an int (environment i gets seed + i), a list of one int or None per "
+                          f"environment, or None; got {seed!r}")
+    seeds = [int(s) if isinstance(s, np.integer) else s for s in seed]
     if len(seeds) != count:
         raise ConfigError(f"reset(seed=[...]) needs one seed per environment: {len(seeds)} for {count}")
     return seeds

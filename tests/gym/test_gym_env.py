@@ -233,3 +233,13 @@ def test_make_imports_the_package_itself_through_the_module_prefix():
             "obs, _ = env.reset(seed=0); print(type(env.unwrapped).__name__, sorted(obs))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["StopSignEnv", "['image_front',", "'speed_mps']"]
+
+
+def test_a_refused_first_reset_leaves_a_made_environment_usable():
+    # Gymnasium 1.4's passive checker broke every later step once a first reset had raised; it is off by default.
+    env = gymnasium.make(avsim.gym.ENV_ID, perception="oracle", images=False, config_overrides=SHORT)
+    with pytest.raises(ConfigError, match="seed"):
+        env.reset(seed=-1)
+    env.reset(seed=0)
+    assert env.step([0.1, 0.0])[4]["time_s"] > 0
+    env.close()

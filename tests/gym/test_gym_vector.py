@@ -77,3 +77,28 @@ def test_the_vector_env_has_gymnasiums_batched_spaces_and_autoreset_metadata():
 def test_a_bad_count_of_environments_is_one_line(num_envs):
     with pytest.raises(ConfigError, match="num_envs"):
         avsim.gym.vector.StopSignVectorEnv(num_envs=num_envs, perception="oracle")
+
+
+@pytest.mark.parametrize("num_envs", [True, avsim.gym.vector.MAX_NUM_ENVS + 1])
+def test_a_count_that_is_a_bool_or_would_exhaust_memory_is_refused_before_any_environment_is_built(num_envs):
+    with pytest.raises(ConfigError, match="num_envs"):
+        avsim.gym.vector.StopSignVectorEnv(num_envs=num_envs, perception="oracle")
+
+
+def _times(envs):
+    return [env.loop.time_s for env in envs.envs]
+
+
+def test_bad_actions_and_seeds_are_refused_before_any_environment_moves():
+    envs = avsim.gym.vector.StopSignVectorEnv(num_envs=2, perception="oracle", images=False)
+    envs.reset(seed=[5, 6])
+    assert [env.loop.config.scenario.seed for env in envs.envs] == [5, 6]
+    for actions in (np.zeros((1, 2)), np.zeros((3, 2)), np.array([[0.1, 0.0], [np.nan, 0.0]]), "x"):
+        with pytest.raises(ConfigError, match=r"shape \(2, 2\)"):
+            envs.step(actions)
+    assert _times(envs) == [0.0, 0.0]  # too few rows once stepped the first car alone, unseen
+    for seed in (2**32 - 1, 1.5, "3", True, [1]):  # the first overflows in the second environment (seed + 1)
+        with pytest.raises(ConfigError, match="seed"):
+            envs.reset(seed=seed)
+    assert [env.loop.config.scenario.seed for env in envs.envs] == [5, 6]
+    envs.close()
