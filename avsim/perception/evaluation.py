@@ -81,7 +81,7 @@ def _bin_name(lo: float, hi: float) -> str:
     return f"{lo}-{hi} m"
 
 
-def _eval_record(line: str, where: str, data_dir: Path) -> tuple[dict, Record]:
+def eval_record(line: str, where: str, data_dir: Path) -> tuple[dict, Record]:
     """One labels line as the evaluation reads it, checked as training checks it (`parse_line`),
     plus the meta keys the scoring reads (camera, target_kind, dist_m); a one-line DatasetError
     naming FILE:LINE and the field, so no line fails after the images before it were scored."""
@@ -106,7 +106,7 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
     from tqdm import tqdm
 
     data_dir = Path(data_dir)
-    parsed = [_eval_record(line, where, data_dir) for where, line in split_lines(data_dir, split)]
+    parsed = [eval_record(line, where, data_dir) for where, line in split_lines(data_dir, split)]
     if not parsed:  # a score over no image would be written as if it meant something
         raise DatasetError(f"{data_dir / split}.jsonl lists no images; evaluate another split (--split) or "
                            f"dataset (--data), or remake it with `avsim detector make-data --out {data_dir} --overwrite`")

@@ -42,7 +42,10 @@ from pathlib import Path
 import numpy as np
 
 from avsim.config import ARITHMETICS, COCO_INPUTS, CameraConfig, PerceptionConfig
-from avsim.errors import ConfigError
+from avsim.errors import AvsimError, ConfigError, OutputError
+from avsim.outputs import check_output_folder
+from avsim.perception.detector.data import MISSING, check_image_files, field_error, split_lines
+from avsim.perception.evaluation import eval_record
 from avsim.validation import OneLineArgumentParser, config_flag, number_flag
 from avsim.perception.ap import box_iou, match_detections
 from avsim.perception.cpu_bf16 import arithmetic, arithmetics_here
@@ -103,15 +106,27 @@ def _score_frame(args: tuple[str, dict, float]) -> list[dict]:
     return rows
 
 
+def read_frames(data_dir: Path, limit: int | None = None) -> list[dict]:
+    """The labels lines of the dataset (train, then val; the first `limit`), each checked as `avsim detector eval`
+    checks it, with the meta.town this report groups by, and each image's file: a one-line DatasetError naming
+    FILE:LINE before the first frame is scored, not a worker's traceback after the others were."""
+    splits = ("train", "val") if (data_dir / "val.jsonl").is_file() else ("train",)
+    lines = [(where, line) for split in splits for where, line in split_lines(data_dir, split)][:limit]
+    checked = [(*eval_record(line, where, data_dir), where) for where, line in lines]
+    for record, _, where in checked:
+        town = record["meta"].get("town", MISSING)
+        if not isinstance(town, str):
+            raise field_error(where, "meta.town", town, 'the town it was rendered in, e.g. "town07"')
+    check_image_files([parsed for _, parsed, _ in checked])
+    return [record for record, _, _ in checked]
+
+
 def score_dataset(data_dir: Path, settings: tuple[tuple[str, str], ...], threshold: float, workers: int, upscale: float,
                   min_confidence: float, limit: int | None = None, network: str = "coco") -> list[dict]:
     """Rows of `_score_frame` for every frame of the dataset (train, then val) and setting (mode, precision)."""
     from tqdm import tqdm
 
-    records = [json.loads(line) for line in (data_dir / "train.jsonl").read_text().splitlines()]
-    records += [json.loads(line) for line in (data_dir / "val.jsonl").read_text().splitlines()] \
-        if (data_dir / "val.jsonl").is_file() else []
-    records = records[:limit] if limit else records
+    records = read_frames(data_dir, limit)
     jobs = [(str(data_dir), record, threshold) for record in records]
     rows: list[dict] = []
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(network, settings, upscale, min_confidence)) as pool:
@@ -324,6 +339,10 @@ def main(argv: list[str] | None = None) -> int:
         for data in map(Path, args.data):
             if not (data / "train.jsonl").is_file():
                 raise ConfigError(f"{data} has no train.jsonl; make one with `avsim detector make-data --out {data}`")
+        out = check_output_folder(args.out, "--out")
+        held = [name for name in ("frames.jsonl", "report.md") if (out / name).exists()]
+        if held:  # an earlier run's results, or a file of the user's, which this run would replace after scoring
+            raise OutputError(f"--out {out} already holds {', '.join(held)}; choose another --out, or remove them")
         upscale = getattr(defaults, f"{args.network}_upscale") if args.upscale is None else args.upscale
         if not 1 <= upscale <= 4:
             raise ConfigError(f"--upscale must be in [1, 4], got {upscale}")
@@ -332,10 +351,9 @@ def main(argv: list[str] | None = None) -> int:
             for row in score_dataset(data, tuple((m, p) for m in modes for p in precisions), args.threshold, args.workers,
                                      upscale, defaults.min_confidence, args.limit, args.network):
                 rows.append({**row, "image": str(data / row["image"])})
-    except ConfigError as exc:
+    except AvsimError as exc:  # a bad flag, dataset or output folder: one line, before or instead of the scoring
         print(f"avsim: error: {exc}", file=sys.stderr)
         return exc.exit_code
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "frames.jsonl", "w") as handle:
         for row in rows:
