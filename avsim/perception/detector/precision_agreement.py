@@ -11,15 +11,13 @@ whole 640x480 images (no region of interest), where both precisions see the same
 
 from __future__ import annotations
 
-import argparse
-import math
 import sys
 from pathlib import Path
 
 from avsim.config import ARITHMETICS
 from avsim.errors import AvsimError
-from avsim.perception.detector.data import split_path
 from avsim.perception.evaluation import EvalReport, evaluate
+from avsim.validation import OneLineArgumentParser, number_flag
 
 
 def measure(data_dir: str | Path, conf_threshold: float, split: str = "val", limit: int | None = None,
@@ -67,26 +65,20 @@ def main(argv: list[str] | None = None) -> int:
     """`python -m avsim.perception.detector.precision_agreement`: score the detector in fp32 and in
     bf16 on the same held-out frames and print where they differ; returns the exit status.
     """
-    parser = argparse.ArgumentParser(prog="python -m avsim.perception.detector.precision_agreement", description=__doc__.split("\n")[0])
+    parser = OneLineArgumentParser(prog="python -m avsim.perception.detector.precision_agreement",
+                                   description=__doc__.split("\n")[0])
     parser.add_argument("--data", default="data/signs", help="dataset directory (`avsim detector make-data`)")
     parser.add_argument("--split", choices=("val", "train"), default="val")
-    parser.add_argument("--conf", type=float, default=0.5, help="confidence threshold for recall and false positives")
-    parser.add_argument("--limit", type=int, help="score only the first N images")
+    parser.add_argument("--conf", type=number_flag(0, 1, lo_open=True, hi_open=True), default=0.5,
+                        help="confidence threshold for recall and false positives")
+    parser.add_argument("--limit", type=number_flag(1, None, integer=True), help="score only the first N images")
     args = parser.parse_args(argv)
-    if not 0 < args.conf < 1 or not math.isfinite(args.conf):
-        print(f"error: --conf must be in (0, 1), got {args.conf}", file=sys.stderr)
-        return 2
-    if args.limit is not None and args.limit < 1:
-        print(f"error: --limit must be >= 1, got {args.limit}", file=sys.stderr)
-        return 2
-    try:
-        split_path(args.data, args.split)  # a one-line error naming how to make the dataset
+    try:  # a bad labels line or image is one line (the dataset is checked before the first image is scored)
+        print(format_agreement(measure(args.data, args.conf, args.split, args.limit)))
     except AvsimError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(format_agreement(measure(args.data, args.conf, args.split, args.limit)))
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())
