@@ -268,6 +268,8 @@ ENTRY_POINTS = {
     "detector.train --lr nan": ("avsim.perception.detector.train", ["--data", "d", "--out", "w.pt", "--lr", "nan"], "--lr"),
     "coco.realism --threshold 1": ("avsim.perception.coco.realism", ["--data", "d", "--threshold", "1"], "--threshold"),
     "world.textures --out x (it takes no arguments)": ("avsim.world.textures", ["--out", "x"], "unrecognized arguments"),
+    "coco.fetch --bogus (it takes no arguments)": ("avsim.perception.coco.fetch", ["--bogus"], "unrecognized arguments"),
+    "nanodet.fetch x (it takes no arguments)": ("avsim.perception.nanodet.fetch", ["x"], "unrecognized arguments"),
     "precision_agreement --conf x": ("avsim.perception.detector.precision_agreement", ["--conf", "x"], "--conf"),
     "precision_agreement on a folder without labels": ("avsim.perception.detector.precision_agreement", ["--data", "/dev"],
                                                         "val.jsonl is missing"),

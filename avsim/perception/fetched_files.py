@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from avsim.errors import AvsimError
+from avsim.validation import OneLineArgumentParser
 
 
 def sha256_of(path: Path) -> str:
@@ -90,9 +91,11 @@ class FetchedFiles:
             self.install(self.extract(download(workdir), workdir, prefix), cache_dir)
         return self.cached(cache_dir)
 
-    def run_fetch(self, fetch: Callable[[], tuple[Path, ...]], fetched: str) -> int:
+    def run_fetch(self, fetch: Callable[[], tuple[Path, ...]], fetched: str, argv: list[str] | None = None) -> int:
         """A fetch module's `main`: `fetch()`, then where the files are (exit 0) or the one-line error (exit 2).
-        fetched: what to call them in the report, with their source and licence."""
+        fetched: what to call them in the report, with their source and licence. argv: the command line (None:
+        sys.argv's); it takes no arguments, so a mistyped one is refused rather than ignored."""
+        OneLineArgumentParser(prog=self.fetch_command, description=f"Fetch and check the {fetched}.").parse_args(argv)
         try:
             paths = fetch()
         except self.error as exc:

