@@ -31,7 +31,7 @@ def test_a_missing_or_altered_file_is_one_line_naming_the_fetch_command(tmp_path
 def test_missing_npm_is_one_line_naming_the_fix(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(fetch, "CACHE_DIR", tmp_path / "cache")
     monkeypatch.setattr(shutil, "which", lambda name: None)
-    assert fetch.main() == 2
+    assert fetch.main([]) == 2
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 1 and "npm" in lines[0] and fetch.FETCH_COMMAND in lines[0]
     assert not (tmp_path / "cache").exists()
