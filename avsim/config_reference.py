@@ -209,8 +209,13 @@ def main(argv: list[str] | None = None) -> int:
         if args.check:
             path = Path(args.check)
             if not path.is_file():
-                raise ConfigError(f"{path} does not exist; write it with {COMMAND}")
-            if path.read_text() != page:
+                what = "does not exist" if not path.exists() else "is not a regular file"
+                raise ConfigError(f"{path} {what}; write it with {COMMAND}")
+            try:
+                current = path.read_text(encoding="utf-8")
+            except UnicodeDecodeError:  # not the page, nor any text it would be compared with
+                current = None
+            if current != page:
                 print(f"{PROG}: {path} is stale; write it again with {COMMAND}", file=sys.stderr)
                 return 1
             print(f"{path} is current")
