@@ -125,6 +125,13 @@ class StopSignEnv(gymnasium.Env):
                  config_overrides: Mapping[str, Any] | None = None, detectors: FrameDetectorCache | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        for name, flag in (("images", images), ("full_control", full_control)):
+            if not isinstance(flag, (bool, np.bool_)):  # bool("no") is True
+                raise ConfigError(f"{name} must be True or False, got {flag!r}")
+        if perception is not None and (not isinstance(perception, str) or not perception):
+            raise ConfigError(f"perception must be None or a perception's name (oracle, detector, coco, ...), got {perception!r}")
+        if isinstance(speed_kmh, (np.floating, np.integer)):
+            speed_kmh = float(speed_kmh)  # the config takes Python floats; a numpy scalar is the same speed
         self.cameras = _checked_cameras(cameras)
         perception = None if perception == "none" else perception
         if not images and perception is None:
@@ -284,6 +291,8 @@ class StopSignEnv(gymnasium.Env):
 
 
 def _checked_cameras(cameras: Sequence[str]) -> tuple[str, ...]:
+    if not isinstance(cameras, (str, Sequence)):
+        raise ConfigError(f"cameras must be a camera's name or a list of them ({', '.join(CAMERA_NAMES)}), got {cameras!r}")
     names = (cameras,) if isinstance(cameras, str) else tuple(cameras)
     unknown = [name for name in names if name not in CAMERA_NAMES]
     if not names or unknown or len(set(names)) != len(names):

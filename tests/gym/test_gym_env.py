@@ -203,6 +203,10 @@ def test_render_returns_the_front_camera_image():
     ({"render_mode": "ansi"}, "render_mode must be"),
     ({"images": False}, "only its speed"),
     ({"config_overrides": "fog"}, "config_overrides must be a mapping"),
+    ({"perception": "oracle", "images": "no"}, "images must be True or False"),
+    ({"perception": "oracle", "full_control": "False"}, "full_control must be True or False"),
+    ({"perception": ""}, "perception must be None or a perception's name"),
+    ({"perception": "oracle", "cameras": 5}, "cameras must be a camera's name"),
 ])
 @pytest.mark.filterwarnings("ignore:.*not in the possible render_modes")  # Gymnasium's own, before ours
 def test_bad_settings_are_one_line_config_errors(kwargs, message):
@@ -242,4 +246,10 @@ def test_a_refused_first_reset_leaves_a_made_environment_usable():
         env.reset(seed=-1)
     env.reset(seed=0)
     assert env.step([0.1, 0.0])[4]["time_s"] > 0
+    env.close()
+
+
+def test_a_numpy_speed_is_the_same_speed():
+    env = _make(perception="oracle", images=False, speed_kmh=np.float32(30))
+    assert env.unwrapped.config.scenario.speed_kmh == 30.0
     env.close()
