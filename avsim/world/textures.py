@@ -253,6 +253,8 @@ def load_texture_png(path: str | os.PathLike, expected_aspect: float | None = No
     p = Path(path)
     if p.is_dir():
         raise TextureError(f"texture {p} is a folder; {_PNG_HINT}, e.g. a file in it")
+    if p.exists() and not p.is_file():  # a device would be read until memory runs out, a pipe blocks
+        raise TextureError(f"texture {p} is not a regular file (a device, pipe or socket); {_PNG_HINT}")
     if not p.is_file():
         raise TextureError(f"texture {p} does not exist; check the path or run "
                            f"`python -m avsim.world.textures` to regenerate the clean ones")

@@ -207,3 +207,13 @@ def test_committed_textures_match_the_makers(kind):
     # If this fails, the drawing code changed: run `python -m avsim.world.textures`.
     committed = load_texture_png(TEXTURE_DIR / CLEAN_TEXTURE_FILES[kind])
     assert np.array_equal(committed, SIGN_TEXTURE_MAKERS[kind]())
+
+
+def test_a_device_or_a_pipe_as_a_texture_is_refused_without_reading_it(tmp_path):
+    import os
+
+    pipe = tmp_path / "sign.png"
+    os.mkfifo(pipe)
+    for path in ("/dev/zero", pipe):
+        with pytest.raises(TextureError, match="not a regular file"):
+            load_texture_png(path)

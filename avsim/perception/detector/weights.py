@@ -99,6 +99,8 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     if path.is_dir():
         raise WeightsError(f"detector weights {path} is a folder; name the weights file in it (e.g. {path / 'sign_detector.pt'})")
+    if path.exists() and not path.is_file():  # torch.load would read a device until memory runs out
+        raise WeightsError(f"detector weights {path} is not a regular file (a device, pipe or socket); name a weights file")
     if not path.is_file():
         raise WeightsError(f"detector weights {path} are missing; train them with {TRAIN_HINT} (see docs/perception.md)")
     try:

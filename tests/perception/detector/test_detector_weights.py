@@ -116,3 +116,11 @@ def test_the_scene_trained_weights_load_beside_the_shipped_ones_and_differ():
     assert scenes_meta["data_dir"] == "data/signs_all" and scenes_meta["epochs"] == 6
     differ = [name for name, tensor in scenes.state_dict().items() if not torch.equal(tensor, shipped.state_dict()[name])]
     assert len(differ) > 10
+
+
+def test_a_device_or_a_pipe_as_weights_is_refused_without_reading_it(tmp_path):
+    pipe = tmp_path / "w.pt"
+    os.mkfifo(pipe)
+    for path in ("/dev/zero", pipe):
+        with pytest.raises(WeightsError, match="not a regular file"):
+            load_weights(path)
