@@ -63,6 +63,8 @@ from avsim.vehicle.physics import Controls
 RENDER_CAMERA = "front"
 # The steering actuators of models/car.xml, whose control range is the full lock.
 _STEER_ACTUATOR = "car/steer_fl"
+# The policy keys an episode reads: the threshold that decides which detection counts as the result's first one.
+POLICY_KEYS_READ = ("conf_threshold",)
 
 
 def env_config(*, town: str | None = None, placement: str | None = None, sign: str | None = None,
@@ -88,6 +90,11 @@ def env_config(*, town: str | None = None, placement: str | None = None, sign: s
         raise ConfigError("config_overrides sets scenario.seed; the episode's seed is reset(seed=...)")
     if "kind" in overrides.get("perception", {}):
         raise ConfigError("config_overrides sets perception.kind; give perception=... instead")
+    policy = overrides.get("policy", {})
+    unread = sorted(f"policy.{key}" for key in (policy if isinstance(policy, Mapping) else {}) if key not in POLICY_KEYS_READ)
+    if unread:  # the agent takes the braking policy's place, so no policy would read them
+        raise ConfigError(f"config_overrides sets {', '.join(unread)}, which the environment never reads (the agent "
+                          f"takes the braking policy's place); of the policy keys it reads only {', '.join(POLICY_KEYS_READ)}")
     for key, value in (("town", town), ("placement", placement), ("sign", sign), ("speed_kmh", speed_kmh)):
         if value is not None:
             if key in scenario:

@@ -203,6 +203,7 @@ def test_render_returns_the_front_camera_image():
     ({"render_mode": "ansi"}, "render_mode must be"),
     ({"images": False}, "only its speed"),
     ({"config_overrides": "fog"}, "config_overrides must be a mapping"),
+    ({"perception": "oracle", "config_overrides": {"policy": {"vote_k": 4}}}, "policy.vote_k, which the environment never reads"),
     ({"perception": "oracle", "images": "no"}, "images must be True or False"),
     ({"perception": "oracle", "full_control": "False"}, "full_control must be True or False"),
     ({"perception": ""}, "perception must be None or a perception's name"),
