@@ -143,6 +143,9 @@ def check_output_file(path: str | os.PathLike, flag: str, *, suffix: str | None 
         raise OutputError(f"{flag} '{text}' is a folder; give a file name inside it" + (f", e.g. {p / ('out' + ending)}" if ending else ""))
     if p.exists() and not p.is_file():
         raise OutputError(f"{flag} '{text}' exists and is not a regular file (a device or a pipe); give another path")
+    if p.is_symlink():  # the file is written beside and renamed into place, which replaces the link, not its target
+        raise OutputError(f"{flag} '{text}' is a symbolic link (to {os.readlink(p)}); give the path it points to, or "
+                          "another path")
     _check_can_create_in(p.parent, flag, text)
     return p
 

@@ -95,3 +95,12 @@ def test_an_input_that_is_a_device_or_a_pipe_is_refused_before_it_is_read(tmp_pa
         err = capsys.readouterr().err.splitlines()
         assert code == 2 and len(err) == 1 and "is not a regular file" in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.toml"]
+
+
+def test_a_symbolic_link_as_an_output_file_is_refused_rather_than_replaced(tmp_path):
+    (tmp_path / "real.json").write_text("{}")
+    for name, target in (("link.json", tmp_path / "real.json"), ("dangling.json", tmp_path / "no" / "x.json")):
+        (tmp_path / name).symlink_to(target)
+        with pytest.raises(OutputError, match="is a symbolic link"):
+            check_output_file(tmp_path / name, "--json")
+        assert (tmp_path / name).is_symlink()
