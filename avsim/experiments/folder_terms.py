@@ -32,8 +32,10 @@ class RunTerms(Protocol):
     set_items: tuple[tuple[str, Any], ...]  # the --set values: (dotted key, value), sorted
 
 
-# The file each batch command writes into the folder it runs in, and so the command that made a folder.
-MADE_BY = {"sweep.toml": "avsim sweep", "leaderboard.toml": "avsim leaderboard", "runs.jsonl": "avsim reproduce"}
+# The file each batch command writes into the folder it runs in (a sweep's and a leaderboard's copy of their file,
+# reproduce's run records), and so the command that made a folder.
+SWEEP_COPY, LEADERBOARD_COPY, REPRODUCE_RUNS = "sweep.toml", "leaderboard.toml", "runs.jsonl"
+MADE_BY = {SWEEP_COPY: "avsim sweep", LEADERBOARD_COPY: "avsim leaderboard", REPRODUCE_RUNS: "avsim reproduce"}
 
 
 def check_made_by(folder: Path, command: str) -> None:

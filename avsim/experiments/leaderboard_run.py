@@ -26,7 +26,8 @@ from avsim.experiments.recordings import (DEFAULT_MCAP, DEFAULT_RRD, check_modes
                                           with_recordings)
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, run_resumable
 from avsim.experiments.folder_setting import SETTING_FILE
-from avsim.experiments.folder_terms import check_made_by, check_resumed_plan, check_resumed_terms, record_terms
+from avsim.experiments.folder_terms import (LEADERBOARD_COPY, check_made_by, check_resumed_plan, check_resumed_terms,
+                                            record_terms)
 from avsim.experiments.set_overrides import SET_FILE, flags_of_items
 from avsim.experiments.spec import check_renderer
 from avsim.metrics import write_json_atomic
@@ -34,7 +35,7 @@ from avsim.realism.settings import BASELINE
 
 # Every file a leaderboard writes into its folder (`avsim.experiments.leaderboard`'s docstring), checked before the
 # first run: the report is written only after the last one.
-FOLDER_FILES = ("leaderboard.toml", RESULTS_FILE, "manifest.json", REPORT_FILE, FIGURE_FILE, SET_FILE, SETTING_FILE)
+FOLDER_FILES = (LEADERBOARD_COPY, RESULTS_FILE, "manifest.json", REPORT_FILE, FIGURE_FILE, SET_FILE, SETTING_FILE)
 
 
 def run_leaderboard(board: Leaderboard, out_dir: str | Path, *, quick: bool = False, workers: int | None = None,
@@ -64,7 +65,7 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
                             progress: bool, backend: str, address: str | None, batch: int, rrd: str, mcap: str) -> Path:
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-    check_resumed_plan(out, existing, board.path, board.name, "leaderboard.toml")
+    check_resumed_plan(out, existing, board.path, board.name, LEADERBOARD_COPY)
     # The distinct configs are built as the batch draws on them, never all at once.
     plan = board.plan(quick).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     options = ["--quick" if quick else "", f"--workers {workers}" if workers is not None else "",
@@ -76,8 +77,8 @@ def _run_leaderboard_locked(board: Leaderboard, out: Path, *, quick: bool, worke
     started = time.perf_counter()
     started_at = dt.datetime.now().astimezone()
     out.mkdir(parents=True, exist_ok=True)
-    if board.path.resolve() != (out / "leaderboard.toml").resolve():
-        shutil.copy2(board.path, out / "leaderboard.toml")
+    if board.path.resolve() != (out / LEADERBOARD_COPY).resolve():
+        shutil.copy2(board.path, out / LEADERBOARD_COPY)
     record_terms(out, board)
     nodes = cluster_nodes(backend, address)
     records, ran = run_resumable(plan, results_path, existing, resume_command=f"{command} --resume", workers=workers,

@@ -41,6 +41,7 @@ from avsim.experiments.batch import check_backend, resolve_workers
 from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
 from avsim.experiments.figures import FIGURE_FILES
+from avsim.experiments.folder_terms import REPRODUCE_RUNS
 from avsim.experiments.recordings import (DEFAULT_MCAP, DEFAULT_RRD, check_modes, recording_flags, recording_folders,
                                           with_recordings)
 from avsim.experiments.results_file import read_records
@@ -195,10 +196,10 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     # Every file it writes into the folder (the module docstring) is checked before the first run: a --resume
     # folder may hold a folder where its report goes. A start that fails before the first run (a Ray cluster that
     # cannot be reached) leaves no new folder.
-    files = ("runs.jsonl", "manifest.json", "report.md", SET_FILE, *FIGURE_FILES,
+    files = (REPRODUCE_RUNS, "manifest.json", "report.md", SET_FILE, *FIGURE_FILES,
              *(f"experiments/{experiment.path.name}" for experiment in experiments))
     folders = recording_folders([experiment.path.stem for experiment in experiments], rrd=rrd, mcap=mcap)
-    with locked_output(out, "avsim reproduce", results_name="runs.jsonl", files=files, folders=folders):
+    with locked_output(out, "avsim reproduce", results_name=REPRODUCE_RUNS, files=files, folders=folders):
         return _reproduce_into(out, experiments, existing, selection=selection, workers=workers, progress=progress,
                                backend=backend, address=address, started=started, started_at=started_at, batch=batch,
                                rrd=rrd, mcap=mcap, resumed=resume is not None, overrides=overrides)
@@ -260,7 +261,7 @@ def check_resumed_setting(folder: Path, experiments: list[Experiment], existing:
 def resumable_records(folder: Path) -> list[dict]:
     """The records of the reproduction in `folder`, to finish it; a one-line ConfigError when
     `folder` is not one (no runs.jsonl), or its runs.jsonl is not avsim's or has a corrupt line."""
-    runs = folder / "runs.jsonl"
+    runs = folder / REPRODUCE_RUNS
     if not runs.is_file():
         raise ConfigError(f"--resume {folder}: no runs.jsonl there, so it is not a folder `avsim reproduce` made; "
                           "name the results/<timestamp> folder of the reproduction to finish")
@@ -280,7 +281,7 @@ def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dic
     plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     nodes = cluster_nodes(backend, address)
     # Runs are matched by name as well as config: two experiment files may share a config.
-    records, ran = run_resumable(plan, out / "runs.jsonl", existing, by_run=True, workers=workers, progress=progress,
+    records, ran = run_resumable(plan, out / REPRODUCE_RUNS, existing, by_run=True, workers=workers, progress=progress,
                                  resume_command=" ".join(filter(None, ("avsim reproduce", selection, f"--resume {out}"))),
                                  description="reproduce", backend=backend, address=address, batch=batch)
     wall_s = time.perf_counter() - started

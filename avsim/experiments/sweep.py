@@ -71,7 +71,7 @@ from avsim.experiments.recordings import (DEFAULT_MCAP, DEFAULT_RRD, check_modes
 from avsim.experiments.resumable import RESULTS_FILE, existing_records, manifest_history, run_resumable
 from avsim.experiments.plan import Plan
 from avsim.experiments.folder_setting import SETTING_FILE
-from avsim.experiments.folder_terms import check_made_by, check_resumed_plan, check_resumed_terms, record_terms
+from avsim.experiments.folder_terms import SWEEP_COPY, check_made_by, check_resumed_plan, check_resumed_terms, record_terms
 from avsim.experiments.set_overrides import SET_FILE, checked_set, flags_of_items, flat_items, refuse_layered, set_title
 from avsim.experiments.run_task import RunSpec
 from avsim.experiments.sweep_report import FIGURE_FILE
@@ -86,7 +86,7 @@ SIGN_KEY = "scenario.sign"
 Scalar = str | int | float | bool
 # Every file a sweep writes into its folder (the module docstring), checked before the first run: the report is
 # written only after the last one.
-FOLDER_FILES = ("sweep.toml", RESULTS_FILE, "manifest.json", "summary.md", FIGURE_FILE, SET_FILE, SETTING_FILE)
+FOLDER_FILES = (SWEEP_COPY, RESULTS_FILE, "manifest.json", "summary.md", FIGURE_FILE, SET_FILE, SETTING_FILE)
 
 
 @dataclass(frozen=True)
@@ -327,7 +327,7 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
 
     results_path = out / RESULTS_FILE
     existing = existing_records(results_path, resume)
-    check_resumed_plan(out, existing, sweep.path, sweep.name, "sweep.toml")
+    check_resumed_plan(out, existing, sweep.path, sweep.name, SWEEP_COPY)
     # The runs are built as the batch draws on them, never all at once (the plan's size and its
     # points' configs were checked when it was loaded); a record finds its grid point by its cell label.
     plan = sweep.plan().then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
@@ -337,8 +337,8 @@ def _run_sweep_locked(sweep: Sweep, out: Path, *, workers: int | None, resume: b
     started_at = dt.datetime.now().astimezone()
     history = manifest_history(out / "manifest.json") if resume else []
     out.mkdir(parents=True, exist_ok=True)
-    if sweep.path.resolve() != (out / "sweep.toml").resolve():
-        shutil.copy2(sweep.path, out / "sweep.toml")
+    if sweep.path.resolve() != (out / SWEEP_COPY).resolve():
+        shutil.copy2(sweep.path, out / SWEEP_COPY)
     record_terms(out, sweep)
     # The file ends in grid order, the same every time; records of runs no longer in the grid stay, after them.
     # --setting and --set, which the resume command and the manifest's command repeat.
