@@ -162,6 +162,15 @@ def check_output_folder(path: str | os.PathLike, flag: str) -> Path:
     return p
 
 
+def refuse_earlier_outputs(folder: Path, names: Sequence[str], flag: str = "--out") -> None:
+    """A one-line OutputError when `folder` already holds any of the files `names` that a command writes into it
+    only after its work (an earlier run's results, or a file of the user's), which the command would replace."""
+    held = [name for name in names if (folder / name).exists()]
+    if held:
+        raise OutputError(f"{flag} {folder} already holds {', '.join(held)}, which this run would replace; choose "
+                          f"another {flag}, or remove them to run it again")
+
+
 def check_output_prefix(prefix: str, flag: str, suffixes: Sequence[str]) -> list[Path]:
     """Check each file `prefix + suffix`; a prefix must name files, not only a folder."""
     if not prefix.strip() or prefix.endswith(os.sep) or Path(prefix).name in ("", ".", ".."):

@@ -104,3 +104,13 @@ def test_a_symbolic_link_as_an_output_file_is_refused_rather_than_replaced(tmp_p
         with pytest.raises(OutputError, match="is a symbolic link"):
             check_output_file(tmp_path / name, "--json")
         assert (tmp_path / name).is_symlink()
+
+
+def test_a_folder_holding_a_file_the_command_writes_last_is_refused_naming_each(tmp_path):
+    from avsim.outputs import refuse_earlier_outputs
+
+    refuse_earlier_outputs(tmp_path / "new", ("report.md",))
+    (tmp_path / "report.md").write_text("mine")
+    (tmp_path / "notes.txt").write_text("kept")
+    with pytest.raises(OutputError, match=r"already holds report.md, which this run would replace"):
+        refuse_earlier_outputs(tmp_path, ("frames.jsonl", "report.md"))

@@ -11,8 +11,7 @@ import json
 import os
 from pathlib import Path
 
-from avsim.errors import OutputError
-from avsim.outputs import FOLDER, add_output_argument, temporary_path, write_text
+from avsim.outputs import FOLDER, add_output_argument, refuse_earlier_outputs, temporary_path, write_text
 from avsim.realism.frame_set import BIN_WIDTH_M, DEFAULT_MAX_DIST_M, MAX_DIST_LIMIT_M
 from avsim.realism.settings import NETWORKS, SETTINGS
 from avsim.validation import name_list_flag, number_flag
@@ -47,10 +46,7 @@ def _cmd_realism(args: argparse.Namespace) -> int:
     for town in towns:
         TOWNS.get(town)  # every name checked before anything renders
     out = Path(args.out)
-    held = [name for name in REALISM_OUTPUTS if (out / name).exists()]
-    if held:  # a finished run's results, or a file of the user's: this run would replace them
-        raise OutputError(f"--out {out} already holds {', '.join(held)}, which this run would replace; choose another "
-                          "--out, or remove them to run it again")
+    refuse_earlier_outputs(out, REALISM_OUTPUTS)
     settings = tuple(SETTINGS[name] for name in args.settings)
     overrides = parse_set(args.set)
     REALISM_SET.check(overrides, settings)

@@ -42,8 +42,8 @@ from pathlib import Path
 import numpy as np
 
 from avsim.config import ARITHMETICS, COCO_INPUTS, CameraConfig, PerceptionConfig
-from avsim.errors import AvsimError, ConfigError, OutputError
-from avsim.outputs import check_output_folder
+from avsim.errors import AvsimError, ConfigError
+from avsim.outputs import check_output_folder, refuse_earlier_outputs
 from avsim.perception.detector.data import MISSING, check_image_files, field_error, split_lines
 from avsim.perception.evaluation import eval_record
 from avsim.validation import OneLineArgumentParser, config_flag, number_flag
@@ -340,9 +340,7 @@ def main(argv: list[str] | None = None) -> int:
             if not (data / "train.jsonl").is_file():
                 raise ConfigError(f"{data} has no train.jsonl; make one with `avsim detector make-data --out {data}`")
         out = check_output_folder(args.out, "--out")
-        held = [name for name in ("frames.jsonl", "report.md") if (out / name).exists()]
-        if held:  # an earlier run's results, or a file of the user's, which this run would replace after scoring
-            raise OutputError(f"--out {out} already holds {', '.join(held)}; choose another --out, or remove them")
+        refuse_earlier_outputs(out, ("frames.jsonl", "report.md"))  # written only after every frame is scored
         upscale = getattr(defaults, f"{args.network}_upscale") if args.upscale is None else args.upscale
         if not 1 <= upscale <= 4:
             raise ConfigError(f"--upscale must be in [1, 4], got {upscale}")
