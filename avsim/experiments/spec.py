@@ -160,6 +160,8 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
     kind names the file in errors ("experiment", "sweep"); unknown top-level keys, a title that
     is not a string and seeds that are not an integer >= 1 are one-line ConfigErrors.
     """
+    if path.exists() and not (path.is_file() or path.is_dir()):  # /dev/zero would be read until memory runs out
+        raise ConfigError(f"{path} is not a regular file (a device, pipe or socket); give the {kind} file itself")
     try:
         with path.open("rb") as handle:
             raw = tomllib.load(handle)

@@ -379,3 +379,9 @@ def test_a_file_saved_with_a_byte_order_mark_says_so(tmp_path):
     path.write_bytes(b"\xef\xbb\xbf" + (EXPERIMENTS_DIR / "table1_clean_defended.toml").read_bytes())
     with pytest.raises(ConfigError, match="byte-order mark"):
         load_experiment(path)
+
+
+def test_a_device_as_an_experiment_file_is_refused_without_reading_it():
+    # The command line refuses it too (avsim.outputs); a library caller reaches this reader directly.
+    with pytest.raises(ConfigError, match="not a regular file"):
+        load_experiment(Path("/dev/zero"))
