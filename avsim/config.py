@@ -23,9 +23,8 @@ from avsim.validation import check_ranges, ranged
 C = TypeVar("C")
 # Values of PerceptionConfig.coco_input (perception/coco/preprocess.py says what each does).
 COCO_INPUTS = ("resize", "crop", "upscale")
-# The arithmetics a network runs in: float32, or bfloat16 (the own detector under autocast,
-# perception/detector/infer.py; the COCO CenterNet and YOLO as bfloat16 copies, perception/coco/bf16.py and
-# perception/yolo/bf16.py).
+# The arithmetics a network runs in: float32, or bfloat16 (each network as a bfloat16 copy: the own detector in
+# perception/detector/infer.py, the COCO CenterNet in perception/coco/bf16.py, YOLO in perception/yolo/bf16.py).
 ARITHMETICS = ("fp32", "bf16")
 # Values of PerceptionConfig.detector_precision, coco_precision and yolo_precision: "auto" (bf16 where the
 # CPU runs it, else fp32; perception/cpu_bf16.py) or either arithmetic.
@@ -390,8 +389,8 @@ class PerceptionConfig:
     # a run is bit-identical only at the same count. One thread also lets a pool of
     # worker processes use every core without oversubscribing them.
     threads: int = ranged(1, 1, 64)
-    # `detector`: the arithmetic of the own network. "bf16" runs its convolutions under bfloat16
-    # autocast, about 1.5x faster than "fp32" here, and lets the lock-step batch share one network
+    # `detector`: the arithmetic of the own network. "bf16" runs a bfloat16 copy of it, what bfloat16
+    # autocast computes, about 1.5x faster than "fp32" here, and lets the lock-step batch share one network
     # call among cars (perception/detector/infer.py); it needs a CPU on which oneDNN runs bf16
     # (AVX-512). "auto" is bf16 on such a CPU and fp32 elsewhere, and a batch's manifest says which.
     # bf16 scores differ from fp32's by bf16 rounding: `python -m avsim.perception.detector.precision_agreement`

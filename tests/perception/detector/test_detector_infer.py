@@ -15,7 +15,7 @@ from avsim.perception.base import Detection
 from avsim.perception.detector.infer import SignDetectorRunner
 from avsim.perception.detector.letterbox import fit
 from avsim.perception.detector.model import build_detector
-from avsim.perception.detector.weights import save_checkpoint
+from avsim.perception.detector.weights import SHIPPED_WEIGHTS, save_checkpoint
 from avsim.perception.factory import build_frame_detector
 
 
@@ -82,3 +82,21 @@ def test_the_default_config_runs_bf16_where_the_cpu_has_it_and_fp32_elsewhere(mo
     for supported, arithmetic in ((True, "bf16"), (False, "fp32")):
         monkeypatch.setattr(torch.ops.mkldnn, "_is_mkldnn_bf16_supported", lambda supported=supported: supported)
         assert build_frame_detector(PerceptionConfig(kind="detector")).precision == arithmetic
+
+
+@pytest.mark.skipif(not torch.ops.mkldnn._is_mkldnn_bf16_supported(), reason="this CPU has no oneDNN bf16 kernels")
+def test_the_bf16_copy_computes_what_autocast_computes_bit_for_bit(synthetic_dataset):
+    """The runner's bf16 network is a bf16 copy of the fused float32 one; it must give the maps that bfloat16
+    autocast on the float32 network gives, bit for bit, on the shipped weights and a real front crop."""
+    runner = SignDetectorRunner(SHIPPED_WEIGHTS, precision="bf16")
+    line = json.loads((synthetic_dataset / "val.jsonl").read_text().splitlines()[0])
+    image = cv2.cvtColor(cv2.imread(str(synthetic_dataset / line["image"])), cv2.COLOR_BGR2RGB)
+    batch = torch.from_numpy(np.stack([image[32:416, 64:544], image[64:448, 160:640]])).permute(0, 3, 1, 2)
+    batch = batch.float().div(255.0).contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        copied = runner._maps(batch)
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            autocast = runner.model(batch)
+    assert [m.dtype for m in copied] == [torch.bfloat16] * len(autocast)
+    for ours, theirs in zip(copied, autocast):
+        assert torch.equal(ours, theirs)
