@@ -29,6 +29,7 @@ from avsim.config_owners import DETECT_UNREAD, DETECTING_RUN_READS, EVERY_RUN_RE
 from avsim.config_sight import RUN_CONDITIONS
 from avsim.control.policies import POLICIES
 from avsim.errors import ConfigError
+from avsim.file_kinds import special_file_kind
 from avsim.outputs import write_text
 from avsim.perception.factory import PERCEPTIONS
 from avsim.validation import RANGE_KEY, OneLineArgumentParser
@@ -209,7 +210,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.check:
             path = Path(args.check)
             if not path.is_file():
-                what = "does not exist" if not path.exists() else "is not a regular file"
+                kind = "a folder" if path.is_dir() else special_file_kind(path)
+                what = f"is {kind}, not a regular file" if kind else "does not exist"
                 raise ConfigError(f"{path} {what}; write it with {COMMAND}")
             try:
                 current = path.read_text(encoding="utf-8")

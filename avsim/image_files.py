@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from avsim.errors import AvsimError
+from avsim.file_kinds import special_file_kind
 
 # 50 megapixels (an 8K frame is 33): far above any camera frame avsim or a dataset uses, and
 # about 150 MB of RGB, so a decode cannot exhaust memory.
@@ -84,9 +85,8 @@ def check_image_file(path: Path, what: str = "image") -> bytes:
         raise ImageError(f"{what} {path} is a folder; pass image files (PNG, JPEG, BMP, GIF or WebP), e.g. {path}/*.png")
     if not path.exists():
         raise ImageError(f"{what} {path} does not exist; pass image files (PNG, JPEG, BMP, GIF or WebP)")
-    if not path.is_file():  # a device would be read until memory runs out, a pipe with no writer blocks
-        raise ImageError(f"{what} {path} is not a regular file (a device, pipe or socket); pass image files "
-                         "(PNG, JPEG, BMP, GIF or WebP)")
+    if kind := special_file_kind(path):  # a device would be read until memory runs out, a pipe with no writer blocks
+        raise ImageError(f"{what} {path} is {kind}, not a regular file; pass image files (PNG, JPEG, BMP, GIF or WebP)")
     try:
         with path.open("rb") as file:
             head = file.read(65536)

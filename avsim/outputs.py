@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from avsim.errors import OutputError
+from avsim.file_kinds import special_file_kind
 
 FILE, FOLDER, PREFIX = "file", "folder", "prefix"
 KINDS = (FILE, FOLDER, PREFIX)
@@ -118,10 +119,10 @@ def check_declared_outputs(args: argparse.Namespace) -> None:
         values = getattr(args, dest, None)
         for value in values if isinstance(values, list) else [values]:
             # Only a path that exists: an input may also be a name (--sign clean), not a file.
-            if value and Path(value).exists() and not (Path(value).is_file() or Path(value).is_dir()):
-                # A device or a pipe: /dev/zero would be read until memory runs out, a pipe with no writer blocks.
+            if value and (kind := special_file_kind(value)):
+                # /dev/zero would be read until memory runs out, a pipe with no writer blocks.
                 reader = flag if flag.startswith("-") else f"the {flag} argument"
-                raise OutputError(f"{value} ({reader}) is not a regular file (a device, pipe or socket); give a file")
+                raise OutputError(f"{value} ({reader}) is {kind}, not a regular file; give a file")
             if value and Path(value).exists() and Path(value).resolve() in claimed:
                 reader = flag if flag.startswith("-") else f"the {flag} argument"
                 raise OutputError(f"{claimed[Path(value).resolve()]} would replace {value}, which {reader} reads; "
@@ -141,8 +142,8 @@ def check_output_file(path: str | os.PathLike, flag: str, *, suffix: str | None 
     if p.is_dir():
         ending = suffix or p.suffix
         raise OutputError(f"{flag} '{text}' is a folder; give a file name inside it" + (f", e.g. {p / ('out' + ending)}" if ending else ""))
-    if p.exists() and not p.is_file():
-        raise OutputError(f"{flag} '{text}' exists and is not a regular file (a device or a pipe); give another path")
+    if kind := special_file_kind(p):
+        raise OutputError(f"{flag} '{text}' is {kind}, not a regular file; give another path")
     if p.is_symlink():  # the file is written beside and renamed into place, which replaces the link, not its target
         raise OutputError(f"{flag} '{text}' is a symbolic link (to {os.readlink(p)}); give the path it points to, or "
                           "another path")

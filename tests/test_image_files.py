@@ -48,8 +48,8 @@ def test_a_truncated_png_is_one_line_without_libpngs_printout(tmp_path, capfd):
 def test_a_device_or_a_pipe_is_refused_without_reading_it(tmp_path):
     pipe = tmp_path / "frame.png"
     os.mkfifo(pipe)  # opened for reading, it would block with no writer
-    for path in (Path("/dev/zero"), pipe):
-        with pytest.raises(ImageError, match="not a regular file"):
+    for path, kind in ((Path("/dev/zero"), "a device"), (pipe, r"a pipe \(FIFO\)")):
+        with pytest.raises(ImageError, match=f"is {kind}, not a regular file"):
             check_image_file(path)
 
 

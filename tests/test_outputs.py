@@ -32,7 +32,7 @@ def test_an_existing_file_may_be_replaced_but_not_a_folder_or_a_device(tmp_path)
     check_output_file(tmp_path / "old.json", "--json")
     with pytest.raises(OutputError, match="is a folder"):
         check_output_file(tmp_path, "--json")
-    with pytest.raises(OutputError, match="not a regular file"):
+    with pytest.raises(OutputError, match="'/dev/null' is a device, not a regular file; give another path"):
         check_output_file("/dev/null", "--json")
     with pytest.raises(OutputError, match="is a file, not a folder"):
         check_output_folder(tmp_path / "old.json", "--out")
@@ -90,10 +90,10 @@ def test_an_input_that_is_a_device_or_a_pipe_is_refused_before_it_is_read(tmp_pa
 
     pipe = tmp_path / "plan.toml"
     os.mkfifo(pipe)  # read, it would block with no writer; /dev/zero would be read until memory ran out
-    for source in ("/dev/zero", str(pipe)):
+    for source, kind in (("/dev/zero", "a device"), (str(pipe), "a pipe (FIFO)")):
         code = cli.main([arg.replace("{input}", source).replace("{tmp}", str(tmp_path)) for arg in argv])
         err = capsys.readouterr().err.splitlines()
-        assert code == 2 and len(err) == 1 and "is not a regular file" in err[0], err
+        assert code == 2 and len(err) == 1 and f"is {kind}, not a regular file" in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.toml"]
 
 

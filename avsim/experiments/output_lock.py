@@ -39,6 +39,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from avsim.errors import OutputError
+from avsim.file_kinds import special_file_kind
 
 LOCK_NAME = ".avsim.lock"
 
@@ -106,15 +107,16 @@ def check_writable(folder: Path, files: Iterable[str] = (), folders: Iterable[st
             is_folder = want_folder or depth < len(parts)
             if not path.exists():
                 break  # made when it is written, with any folder below it
+            special = special_file_kind(path)
             if is_folder and not path.is_dir():
-                raise OutputError(f"{path} is a file, where this command makes a folder; remove or rename it, "
-                                  "or choose another --out")
+                raise OutputError(f"{path} is {special or 'a file'}, where this command makes a folder; remove or "
+                                  "rename it, or choose another --out")
             if not is_folder and path.is_dir():
                 raise OutputError(f"{path} is a folder, where this command writes a file; remove or rename it, "
                                   "or choose another --out")
-            if not is_folder and not path.is_file():
-                raise OutputError(f"{path} is not a regular file (a device or a pipe), and this command writes a "
-                                  "file there; remove it, or choose another --out")
+            if not is_folder and special:  # worded as check_output_file's refusal of the same
+                raise OutputError(f"{path} is {special}, not a regular file, where this command writes a file; "
+                                  "remove it, or choose another --out")
 
 
 def _acquire(path: Path, command: str, held: Path) -> int:

@@ -47,6 +47,7 @@ from avsim.config import NO_SIGN, SimConfig, with_overrides
 from avsim.config_owners import check_read, check_read_by_some, dotted_keys, set_keys
 from avsim.errors import AvsimError, ConfigError
 from avsim.experiments.plan_size import MAX_RUNS
+from avsim.file_kinds import special_file_kind
 
 TOP_LEVEL_KEYS = ("title", "seeds", "report", "compare_with", "defaults", "vary", "cells")
 # The section `avsim reproduce` writes for an experiment, declared by the file (`report = "..."`),
@@ -160,8 +161,8 @@ def read_run_file(path: Path, kind: str, top_level_keys: tuple[str, ...], defaul
     kind names the file in errors ("experiment", "sweep"); unknown top-level keys, a title that
     is not a string and seeds that are not an integer >= 1 are one-line ConfigErrors.
     """
-    if path.exists() and not (path.is_file() or path.is_dir()):  # /dev/zero would be read until memory runs out
-        raise ConfigError(f"{path} is not a regular file (a device, pipe or socket); give the {kind} file itself")
+    if special := special_file_kind(path):  # /dev/zero would be read until memory runs out
+        raise ConfigError(f"{path} is {special}, not a regular file; give the {kind} file itself")
     try:
         with path.open("rb") as handle:
             raw = tomllib.load(handle)

@@ -12,7 +12,6 @@ Distances are the camera's depth to the sign face [m], as recorded in the data's
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,8 +21,8 @@ import numpy as np
 from avsim.config import CameraConfig
 from avsim.perception.ap import average_precision, match_detections
 from avsim.perception.base import SIGN_CLASSES, Detection
-from avsim.perception.detector.data import (FINITE, MISSING, DatasetError, Record, check_image_files, field_error,
-                                            parse_line, read_rgb, split_lines)
+from avsim.perception.detector.data import (FINITE, MISSING, DatasetError, Record, check_image_files, decode_line,
+                                            field_error, parse_object, read_rgb, split_lines)
 from avsim.sensors.pinhole import pinhole_distance_m
 from avsim.stats import wilson_interval
 
@@ -84,9 +83,10 @@ def _bin_name(lo: float, hi: float) -> str:
 def eval_record(line: str, where: str, data_dir: Path) -> tuple[dict, Record]:
     """One labels line as the evaluation reads it, checked as training checks it (`parse_line`),
     plus the meta keys the scoring reads (camera, target_kind, dist_m); a one-line DatasetError
-    naming FILE:LINE and the field, so no line fails after the images before it were scored."""
-    parsed = parse_line(line, where, data_dir, SIGN_CLASSES)
-    record = json.loads(line)
+    naming FILE:LINE and the field, so no line fails after the images before it were scored.
+    Returns (the line's JSON object, its `Record`)."""
+    record = decode_line(line, where)
+    parsed = parse_object(record, where, data_dir, SIGN_CLASSES)  # a dict whose meta is a dict, once it passes
     meta = record.get("meta", {})
     if not isinstance(meta.get("camera"), str):
         raise DatasetError(f"{where} has no meta.camera (the camera the image was rendered by); regenerate the dataset")

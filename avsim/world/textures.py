@@ -20,6 +20,7 @@ import numpy as np
 
 from avsim.boundary import run_guarded
 from avsim.errors import TextureError
+from avsim.file_kinds import special_file_kind
 from avsim.image_files import c_stderr_silenced
 from avsim.outputs import write_bytes_atomic
 from avsim.validation import OneLineArgumentParser
@@ -253,8 +254,8 @@ def load_texture_png(path: str | os.PathLike, expected_aspect: float | None = No
     p = Path(path)
     if p.is_dir():
         raise TextureError(f"texture {p} is a folder; {_PNG_HINT}, e.g. a file in it")
-    if p.exists() and not p.is_file():  # a device would be read until memory runs out, a pipe blocks
-        raise TextureError(f"texture {p} is not a regular file (a device, pipe or socket); {_PNG_HINT}")
+    if kind := special_file_kind(p):  # a device would be read until memory runs out, a pipe blocks
+        raise TextureError(f"texture {p} is {kind}, not a regular file; {_PNG_HINT}")
     if not p.is_file():
         raise TextureError(f"texture {p} does not exist; check the path or run "
                            f"`python -m avsim.world.textures` to regenerate the clean ones")

@@ -14,7 +14,7 @@ import pytest
 
 from avsim import cli
 from avsim.errors import OutputError
-from avsim.experiments.output_lock import LOCK_NAME, locked_output, locked_sibling
+from avsim.experiments.output_lock import LOCK_NAME, check_writable, locked_output, locked_sibling
 from avsim.experiments.results_file import read_records
 
 REPO = Path(__file__).resolve().parents[2]
@@ -146,3 +146,19 @@ def test_an_address_that_answers_but_is_no_ray_cluster_is_one_line_within_second
     assert code == 2 and len(err.splitlines()) == 1 and "no Ray cluster answers" in err, err
     assert elapsed_s < 30
     assert not (tmp_path / "out").exists()
+
+
+def test_what_is_in_the_place_of_an_output_is_named_in_one_line(tmp_path):
+    (tmp_path / "rrd").write_text("")
+    (tmp_path / "summary.md").mkdir()
+    os.mkfifo(tmp_path / "results.jsonl")
+    os.mkfifo(tmp_path / "plots")
+    cases = [(["rrd/run.rrd"], [], "rrd is a file, where this command makes a folder"),
+             ([], ["plots"], r"plots is a pipe \(FIFO\), where this command makes a folder"),
+             (["summary.md"], [], "summary.md is a folder, where this command writes a file"),
+             (["results.jsonl"], [], r"results.jsonl is a pipe \(FIFO\), not a regular file, where this command")]
+    for files, folders, match in cases:
+        with pytest.raises(OutputError, match=match) as refused:
+            check_writable(tmp_path, files, folders)
+        assert "\n" not in str(refused.value)
+    check_writable(tmp_path, ["new/run.rrd"], ["new_folder"])  # what is missing passes: it will be made

@@ -383,5 +383,5 @@ def test_a_file_saved_with_a_byte_order_mark_says_so(tmp_path):
 
 def test_a_device_as_an_experiment_file_is_refused_without_reading_it():
     # The command line refuses it too (avsim.outputs); a library caller reaches this reader directly.
-    with pytest.raises(ConfigError, match="not a regular file"):
+    with pytest.raises(ConfigError, match="is a device, not a regular file"):
         load_experiment(Path("/dev/zero"))

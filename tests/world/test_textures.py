@@ -214,6 +214,6 @@ def test_a_device_or_a_pipe_as_a_texture_is_refused_without_reading_it(tmp_path)
 
     pipe = tmp_path / "sign.png"
     os.mkfifo(pipe)
-    for path in ("/dev/zero", pipe):
-        with pytest.raises(TextureError, match="not a regular file"):
+    for path, kind in (("/dev/zero", "a device"), (pipe, r"a pipe \(FIFO\)")):
+        with pytest.raises(TextureError, match=f"is {kind}, not a regular file"):
             load_texture_png(path)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -22,6 +23,7 @@ import torch
 from torch.utils.data import Dataset
 
 from avsim.errors import AvsimError
+from avsim.file_kinds import special_file_kind
 from avsim.image_files import ImageError, check_image_file, decode_image
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.augment import AugmentConfig, clip_boxes, jitter_letterbox, photometric
@@ -76,10 +78,20 @@ def parse_line(line: str, where: str, data_dir: Path, class_names: tuple[str, ..
     Every field's type and shape is checked here, so a hand-edited line is one DatasetError naming
     FILE:LINE and the field, when the dataset is read, and never an internal error mid-training.
     """
+    return parse_object(decode_line(line, where), where, data_dir, class_names)
+
+
+def decode_line(line: str, where: str) -> Any:
+    """The JSON value of labels line `where`, unchecked; a one-line DatasetError when it is not JSON."""
     try:
-        obj = json.loads(line)
+        return json.loads(line)
     except json.JSONDecodeError as exc:
         raise DatasetError(f"{where} is not valid JSON ({exc.msg}); regenerate the dataset") from None
+
+
+def parse_object(obj: object, where: str, data_dir: Path, class_names: tuple[str, ...]) -> Record:
+    """`parse_line` for a line already decoded (`decode_line`), for a reader that also keeps the object;
+    `obj` is only read, never changed."""
     if not isinstance(obj, dict) or not {"image", "boxes", "classes"} <= obj.keys():
         raise DatasetError(f"{where} needs the keys 'image', 'boxes' and 'classes'; regenerate the dataset")
     image, boxes, classes = obj["image"], obj["boxes"], obj["classes"]
@@ -126,7 +138,8 @@ def check_image_files(records: list[Record]) -> None:
         path = record.image_path
         try:
             if not path.is_file():
-                problem = "does not exist" if not path.exists() else "is not a regular file (a folder, device or pipe)"
+                kind = "a folder" if path.is_dir() else special_file_kind(path)
+                problem = f"is {kind}, not a regular file" if kind else "does not exist"
             elif (size := path.stat().st_size) == 0:
                 problem = "is empty"
             elif path.suffix.lower() == ".png" and _last_bytes(path, size, len(PNG_END)) != PNG_END:

@@ -21,6 +21,7 @@ import torch
 from torch import nn
 
 from avsim.errors import AvsimError
+from avsim.file_kinds import special_file_kind
 from avsim.outputs import temporary_path
 from avsim.perception.detector.model import SignDetector, build_detector
 
@@ -99,8 +100,8 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     if path.is_dir():
         raise WeightsError(f"detector weights {path} is a folder; name the weights file in it (e.g. {path / 'sign_detector.pt'})")
-    if path.exists() and not path.is_file():  # torch.load would read a device until memory runs out
-        raise WeightsError(f"detector weights {path} is not a regular file (a device, pipe or socket); name a weights file")
+    if kind := special_file_kind(path):  # torch.load would read a device until memory runs out
+        raise WeightsError(f"detector weights {path} is {kind}, not a regular file; name a weights file")
     if not path.is_file():
         raise WeightsError(f"detector weights {path} are missing; train them with {TRAIN_HINT} (see docs/perception.md)")
     try:

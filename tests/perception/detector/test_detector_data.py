@@ -130,7 +130,7 @@ def test_missing_split_and_missing_image(tmp_path):
 @pytest.mark.parametrize("damage, match", [
     (lambda path: path.write_bytes(b""), "is empty"),
     (lambda path: path.write_bytes(path.read_bytes()[:-20]), "is cut short"),
-    (lambda path: (path.unlink(), path.mkdir()), "is not a regular file"),
+    (lambda path: (path.unlink(), path.mkdir()), "is a folder, not a regular file"),
 ])
 def test_damaged_images_are_refused_before_any_is_read(tmp_path, damage, match):
     for name in ("a.png", "b.png"):

@@ -121,6 +121,6 @@ def test_the_scene_trained_weights_load_beside_the_shipped_ones_and_differ():
 def test_a_device_or_a_pipe_as_weights_is_refused_without_reading_it(tmp_path):
     pipe = tmp_path / "w.pt"
     os.mkfifo(pipe)
-    for path in ("/dev/zero", pipe):
-        with pytest.raises(WeightsError, match="not a regular file"):
+    for path, kind in (("/dev/zero", "a device"), (pipe, r"a pipe \(FIFO\)")):
+        with pytest.raises(WeightsError, match=f"is {kind}, not a regular file"):
             load_weights(path)
