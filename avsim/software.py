@@ -6,7 +6,9 @@ property of the machine, the same for every network, and is recorded here beside
 So is the GL that drew the frames (`gl`): a frame is a function of the state on one GL, and another GL or
 another Mesa may draw some of its pixels differently. And so is the vector instruction set torch's CPU kernels use
 here (`cpu_capability`, e.g. AVX2 or AVX512): fp32 convolutions may sum in another order on another one, so a score
-may differ in its last bits.
+may differ in its last bits. Two CPUs with the same instruction set can still differ: oneDNN picks its kernels by
+the CPU's features beyond it (AMX tiles on recent Intel CPUs, AVX-512 BF16 dot products on AMD's Zen 4) and blocks
+them by its caches, so the CPU's model (`cpu`) is recorded as well.
 """
 
 from __future__ import annotations
@@ -32,14 +34,29 @@ def software_versions() -> dict[str, str]:
     render and infer on its nodes (`avsim.experiments.ray_backend.cluster_nodes`)."""
     return {"python": platform.python_version(), "mujoco": mujoco.__version__, "torch": torch.__version__,
             "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "cpu_capability": torch.backends.cpu.get_cpu_capability(), "precision_auto": auto_arithmetic(),
-            "gl": gl_description() or NO_GL}
+            "cpu": cpu_model(), "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+            "precision_auto": auto_arithmetic(), "gl": gl_description() or NO_GL}
+
+
+def cpu_model(cpuinfo_path: str = "/proc/cpuinfo") -> str:
+    """The CPU's model as Linux names it (the first "model name" in /proc/cpuinfo, e.g. "AMD EPYC 9B14"),
+    else what `platform.processor()` says, else "unknown"."""
+    try:
+        with open(cpuinfo_path, encoding="utf-8", errors="replace") as cpuinfo:
+            for line in cpuinfo:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name" and value.strip():
+                    return value.strip()
+    except OSError:
+        pass  # not Linux: fall back below
+    return platform.processor() or "unknown"
 
 
 # The versions that decide a run's numbers: where another machine differs from this one in one of them, its
 # runs may differ in their last bits (the arithmetic, the kernels) or in pixels (the GL). "machine" names the
-# core count too, which decides nothing; "python" decides nothing either.
-RESULT_DECIDING = ("mujoco", "torch", "numpy", "cpu_capability", "precision_auto", "gl")
+# core count too, which decides nothing; "python" decides nothing either. "cpu" may decide the last bits (the
+# module docstring); a cluster of unlike CPUs is named as such, not proven to differ.
+RESULT_DECIDING = ("mujoco", "torch", "numpy", "cpu", "cpu_capability", "precision_auto", "gl")
 
 
 def differences(here: dict[str, str], nodes: list[dict[str, str]]) -> list[str]:

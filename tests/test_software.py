@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import platform
+
 import mujoco
 import torch
 
 from avsim.perception.cpu_bf16 import auto_arithmetic
 from avsim.sensors import gl
-from avsim.software import NO_GL, differences, software_versions, versions_sentence
+from avsim.software import NO_GL, cpu_model, differences, software_versions, versions_sentence
 
 
 def test_the_versions_are_the_running_libraries_and_auto_is_what_it_runs_as_here():
@@ -36,8 +38,22 @@ def test_the_instruction_set_of_torchs_kernels_is_recorded():
     assert software_versions()["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
 
 
+def test_the_cpu_model_is_read_from_proc_cpuinfo_and_falls_back_without_it(tmp_path, monkeypatch):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC 9B14\n\n"
+                       "processor\t: 1\nmodel name\t: AMD EPYC 9B14\n")
+    assert cpu_model(str(cpuinfo)) == "AMD EPYC 9B14"
+    monkeypatch.setattr(platform, "processor", lambda: "arm")
+    assert cpu_model(str(tmp_path / "missing")) == "arm"
+    cpuinfo.write_text("processor\t: 0\nmodel name\t:\n")  # an empty name is no name
+    assert cpu_model(str(cpuinfo)) == "arm"
+    monkeypatch.setattr(platform, "processor", lambda: "")
+    assert cpu_model(str(cpuinfo)) == "unknown"
+    assert software_versions()["cpu"] == cpu_model()
+
+
 HERE = {"python": "3.11.2", "mujoco": "4.0.0", "torch": "2.13.0", "numpy": "2.3.0", "machine": "x86_64, 2 cores",
-        "cpu_capability": "AVX2", "precision_auto": "fp32", "gl": "llvmpipe, OpenGL 4.5 Mesa 22.3.6"}
+        "cpu": "AMD EPYC 7B13", "cpu_capability": "AVX2", "precision_auto": "fp32", "gl": "llvmpipe, OpenGL 4.5 Mesa 22.3.6"}
 
 
 def test_a_node_differs_only_in_what_decides_a_runs_numbers():
@@ -45,11 +61,13 @@ def test_a_node_differs_only_in_what_decides_a_runs_numbers():
     other_gl = {"node": "10.0.0.3", **HERE, "gl": "NVIDIA H200, OpenGL 4.6"}
     wider = {"node": "10.0.0.4", **HERE, "cpu_capability": "AVX512", "precision_auto": "bf16"}
     silent = {"node": "10.0.0.5", "error": "no answer within 120 s"}
+    newer = {"node": "10.0.0.6", **HERE, "cpu": "AMD EPYC 9B14"}  # same instruction set, another CPU
     assert differences(HERE, [twin]) == []
-    assert differences(HERE, [twin, other_gl, wider, silent]) == [
+    assert differences(HERE, [twin, other_gl, wider, silent, newer]) == [
         "10.0.0.3 runs gl 'NVIDIA H200, OpenGL 4.6' (here 'llvmpipe, OpenGL 4.5 Mesa 22.3.6')",
         "10.0.0.4 runs cpu_capability 'AVX512' (here 'AVX2'), precision_auto 'bf16' (here 'fp32')",
-        "10.0.0.5 did not say what it runs (no answer within 120 s)"]
+        "10.0.0.5 did not say what it runs (no answer within 120 s)",
+        "10.0.0.6 runs cpu 'AMD EPYC 9B14' (here 'AMD EPYC 7B13')"]
 
 
 def test_a_reports_versions_sentence_names_the_cluster_where_the_runs_ran_on_one():
