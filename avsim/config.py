@@ -52,6 +52,8 @@ SIGN_MATERIALS = ("flat", "sheeting")
 SHADOW_MAP_SIZES_PX = (0, 1024, 2048, 4096, 8192)
 # Values of ScenarioConfig.foliage (world/foliage.py), .sky (world/sky.py) and .road_paint (world/surface_textures.py).
 FOLIAGES = ("solid", "clusters")
+# Values of ScenarioConfig.facade_windows (world/facade_windows.py).
+FACADE_WINDOWS = ("texture", "geometry")
 SKIES = ("gradient", "daylight")
 ROAD_PAINTS = ("fresh", "worn")
 # A stop sign turned at most this far from facing the car is for the car; one turned at least
@@ -138,6 +140,11 @@ class ScenarioConfig:
     # filling the same envelope with gaps, at a broadleaf crown's optical porosity (world/foliage.py,
     # docs/realism_foliage.md).
     foliage: str = "solid"
+    # Facade windows: "texture", painted into the facade's material (a checker under flat materials, a storey's
+    # window under textured ones; the default renders); "geometry", the wall alone with the textured facade's
+    # windows built as quads in front of it, sharp at a grazing view where a texture is smeared by its
+    # filtering (world/facade_windows.py, docs/realism_filtering.md).
+    facade_windows: str = "texture"
     # The sky: "gradient", MuJoCo's built-in light-blue gradient (the default renders); "daylight", a clear
     # sky that follows the sun, from Preetham et al.'s model at sky_turbidity (world/sky.py, docs/realism_sky.md).
     sky: str = "gradient"
@@ -169,6 +176,8 @@ class ScenarioConfig:
         _require(self.sign_materials in SIGN_MATERIALS,
                  f"scenario.sign_materials must be one of {', '.join(SIGN_MATERIALS)}, got {self.sign_materials!r}")
         _require(self.foliage in FOLIAGES, f"scenario.foliage must be one of {', '.join(FOLIAGES)}, got {self.foliage!r}")
+        _require(self.facade_windows in FACADE_WINDOWS,
+                 f"scenario.facade_windows must be one of {', '.join(FACADE_WINDOWS)}, got {self.facade_windows!r}")
         _require(self.sky in SKIES, f"scenario.sky must be one of {', '.join(SKIES)}, got {self.sky!r}")
         _require(self.cloud_oktas == 0 or self.sky == "daylight",
                  f"scenario.cloud_oktas = {self.cloud_oktas} needs scenario.sky = \"daylight\" (the gradient sky has no clouds); set both")

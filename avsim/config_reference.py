@@ -46,6 +46,7 @@ CHOICES: dict[str, Any] = {
     "scenario.materials": config_module.MATERIALS,
     "scenario.sign_materials": config_module.SIGN_MATERIALS,
     "scenario.foliage": config_module.FOLIAGES,
+    "scenario.facade_windows": config_module.FACADE_WINDOWS,
     "scenario.sky": config_module.SKIES,
     "scenario.road_paint": config_module.ROAD_PAINTS,
     "scenario.sun_shadow_map_px": config_module.SHADOW_MAP_SIZES_PX,

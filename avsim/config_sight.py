@@ -182,7 +182,7 @@ SLIP_CONTROL = Condition(
 RUN_CONDITIONS: dict[str, Condition] = {
     **dict.fromkeys(("camera.preset", "camera.width_px", "camera.height_px", "camera.fovy_deg", "camera.offsamples",
                      "scenario.distractors", "scenario.layout_seed", "scenario.sign_materials",
-                     "scenario.foliage"), PICTURE),
+                     "scenario.foliage", "scenario.facade_windows"), PICTURE),
     **dict.fromkeys(("camera.supersample", "camera.texture_anisotropy", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                      "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
                      "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint", "scenario.sky_exposure_ev"), COLOUR),

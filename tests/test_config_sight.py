@@ -24,7 +24,8 @@ from tests.test_config_owners import KIND_CONFIGS, _write
 PIXEL = set(FRAME_DETECTORS.names())
 # The conditional keys by what reads them; together every key of RUN_CONDITIONS (checked below).
 PICTURE_KEYS = ("camera.preset", "camera.width_px", "camera.height_px", "camera.fovy_deg", "camera.offsamples",
-                "scenario.distractors", "scenario.layout_seed", "scenario.sign_materials", "scenario.foliage")
+                "scenario.distractors", "scenario.layout_seed", "scenario.sign_materials", "scenario.foliage",
+                "scenario.facade_windows")
 COLOUR_KEYS = ("camera.supersample", "camera.texture_anisotropy", "camera.lens_mtf50_cyc_per_px", "camera.jpeg_quality", "scenario.sun_elevation_deg",
                "scenario.sun_azimuth_deg", "scenario.sun_intensity", "scenario.fog_end_m", "scenario.materials",
                "scenario.sun_shadow_map_px", "scenario.sky", "scenario.road_paint", "scenario.sky_exposure_ev")

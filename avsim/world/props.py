@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from avsim.world import surface_textures as st
+from avsim.world.facade_windows import wall_material
 from avsim.world.signs import set_texture_data
 
 BOX = mujoco.mjtGeom.mjGEOM_BOX
@@ -52,7 +53,8 @@ FACADE_COLOURS = {  # wall, window
 PAINTS = ("paint_white", "paint_yellow")
 
 
-def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool = False) -> None:
+def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool = False,
+                  window_geometry: bool = False) -> None:
     """Register every material the builders use (the sky is `avsim.world.sky`'s).
 
     textured (scenario.materials): surfaces carry procedural texture at the scale a camera resolves
@@ -60,7 +62,16 @@ def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool 
     window instead of a checker.
     worn_paint (scenario.road_paint): the road's paint is worn through to the asphalt beneath it, the
     textured asphalt or the flat one.
+    window_geometry (scenario.facade_windows = "geometry"): each facade's wall without its windows too
+    (`facade_windows.wall_material`), its flat colour or its texture's wall, for facades whose windows are geometry.
     """
+    if window_geometry:
+        walls = st.facade_textures(FACADE_COLOURS, windows=False) if textured else {}
+        for name, (wall, _) in FACADE_COLOURS.items():
+            if textured:
+                _add_textured_material(spec, wall_material(name), walls[name], (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
+            else:
+                spec.add_material(name=wall_material(name), rgba=[*wall, 1.0])
     textures = st.ground_textures(_FLAT_COLOURS) if textured else {}
     if worn_paint:
         rng = np.random.default_rng((st.TEXTURE_SEED, 2))

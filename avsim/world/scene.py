@@ -17,7 +17,7 @@ import numpy as np
 from avsim.config import NO_SIGN, CameraConfig, SimConfig, VehicleConfig
 from avsim.errors import ConfigError
 from avsim.vehicle.assembly import CAR_PREFIX, add_tyre_contacts, load_car
-from avsim.world import foliage, props, sky
+from avsim.world import facade_windows, foliage, props, sky
 from avsim.world.distractors import add_red_signs
 from avsim.world.road import STOP_LINE_X_M, RoadLayout, add_road
 from avsim.world import sign_materials
@@ -121,7 +121,9 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     spec.modelname = f"avsim_{town.name}_{scenario.placement}"
     _set_options(spec, config)
     sky.add_sky(spec, scenario)
-    props.add_materials(spec, textured=scenario.materials == "textured", worn_paint=scenario.road_paint == "worn")
+    window_geometry = scenario.facade_windows == "geometry"
+    props.add_materials(spec, textured=scenario.materials == "textured", worn_paint=scenario.road_paint == "worn",
+                        window_geometry=window_geometry)
     if sheeting:
         sign_materials.add_metal_materials(spec)
     props.add_ground(spec, town.ground_material)
@@ -133,6 +135,8 @@ def compose_scene(config: SimConfig, target_kind: str = "stop_sign",
     extra_signs = town.build_scenery(spec, town.layout, rng)
     if scenario.foliage == "clusters":
         foliage.replace_crowns_with_clusters(spec, scenario.layout_seed)
+    if window_geometry:
+        facade_windows.add_window_geometry(spec, props.FACADE_COLOURS)
     if scenario.distractors == "red_signs":
         add_red_signs(spec, town.layout)
 

@@ -100,21 +100,45 @@ def concrete(rng: np.random.Generator, mean_rgb: tuple[float, float, float]) -> 
     return _albedo(mean_rgb, relative)
 
 
-def facade(rng: np.random.Generator, wall_rgb: tuple[float, float, float], glass_rgb: tuple[float, float, float]) -> np.ndarray:
+# A facade's window in its bay and storey [m]: its left and right edges from the bay's left edge, its head and
+# sill below the storey's top; its frame, its mullion and transom (bars), and how far the transom's centre lies
+# below the head. The texture draws it (`facade`), and `avsim.world.facade_windows` builds it as geometry.
+WINDOW_LEFT_M, WINDOW_RIGHT_M = 0.55, 1.95
+WINDOW_HEAD_M, WINDOW_SILL_M = 0.90, 2.50
+WINDOW_FRAME_M, WINDOW_BAR_M, WINDOW_TRANSOM_BELOW_HEAD_M = 0.06, 0.04, 0.45
+# The glass brightens from this factor of its colour at the sill to that at the head: the sky reflected in
+# the upper panes.
+GLASS_GAIN_SILL, GLASS_GAIN_HEAD = 0.8, 1.15
+_TEXELS_PER_M = 100
+
+
+def window_frame_rgb(wall_rgb: tuple[float, float, float]) -> np.ndarray:
+    """A window frame's colour on a wall of `wall_rgb` ([0, 1]): the wall's, lightened towards light grey."""
+    return 0.55 * np.asarray(wall_rgb, np.float32) + 0.45 * np.asarray((0.85, 0.85, 0.83), np.float32)
+
+
+def facade(rng: np.random.Generator, wall_rgb: tuple[float, float, float], glass_rgb: tuple[float, float, float],
+           window: bool = True) -> np.ndarray:
     """One bay (2.5 m wide) by one storey (3.5 m tall): wall, window 1.4 x 1.6 m with a 6 cm frame,
-    a mullion and a transom, a sill. Rows run top to bottom; 10 texels per 10 cm."""
+    a mullion and a transom, a sill. Rows run top to bottom; 10 texels per 10 cm. `window` False: the wall
+    alone, with the same grain (the rng is drawn the same either way)."""
     height, width = 350, 250  # 1 cm per texel
     wall = np.asarray(wall_rgb, np.float32)
     grain = 0.03 * _grain(rng, 0.8, size=max(height, width))[:height, :width]
     image = wall[None, None] * (1 + grain[..., None])
-    frame = (0.55 * wall + 0.45 * np.asarray((0.85, 0.85, 0.83))).tolist()
-    x0, x1, y0, y1 = 55, 195, 90, 250  # window [texels]
+    if not window:
+        return _to_uint8(image)
+    frame = window_frame_rgb(wall_rgb).tolist()
+    x0, x1 = round(WINDOW_LEFT_M * _TEXELS_PER_M), round(WINDOW_RIGHT_M * _TEXELS_PER_M)  # window [texels]
+    y0, y1 = round(WINDOW_HEAD_M * _TEXELS_PER_M), round(WINDOW_SILL_M * _TEXELS_PER_M)
     glass = np.asarray(glass_rgb, np.float32)
-    vertical = np.linspace(1.15, 0.8, y1 - y0, dtype=np.float32)[:, None, None]  # sky reflected in the upper panes
+    vertical = np.linspace(GLASS_GAIN_HEAD, GLASS_GAIN_SILL, y1 - y0, dtype=np.float32)[:, None, None]
     image[y0:y1, x0:x1] = glass[None, None] * vertical
-    cv2.rectangle(image, (x0, y0), (x1 - 1, y1 - 1), frame, 6)
-    cv2.line(image, ((x0 + x1) // 2, y0), ((x0 + x1) // 2, y1 - 1), frame, 4)  # mullion
-    cv2.line(image, (x0, y0 + 45), (x1 - 1, y0 + 45), frame, 4)  # transom
+    cv2.rectangle(image, (x0, y0), (x1 - 1, y1 - 1), frame, round(WINDOW_FRAME_M * _TEXELS_PER_M))
+    bar = round(WINDOW_BAR_M * _TEXELS_PER_M)
+    cv2.line(image, ((x0 + x1) // 2, y0), ((x0 + x1) // 2, y1 - 1), frame, bar)  # mullion
+    transom = y0 + round(WINDOW_TRANSOM_BELOW_HEAD_M * _TEXELS_PER_M)
+    cv2.line(image, (x0, transom), (x1 - 1, transom), frame, bar)
     cv2.rectangle(image, (x0 - 8, y1), (x1 + 7, y1 + 6), (0.8 * wall).tolist(), -1)  # sill
     return _to_uint8(image)
 
@@ -146,8 +170,10 @@ def ground_textures(flat_colours: dict[str, tuple[float, float, float]]) -> dict
     return {name: maker(rng, flat_colours[name]) for name, maker in makers.items()}
 
 
-def facade_textures(facades: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]) -> dict[str, np.ndarray]:
+def facade_textures(facades: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]],
+                    windows: bool = True) -> dict[str, np.ndarray]:
     """Facade material name -> its (350, 250, 3) uint8 texture (one bay by one storey, `facade`), from (wall RGB, glass
-    RGB) in [0, 1] each, seeded from TEXTURE_SEED so every build draws the same facades."""
+    RGB) in [0, 1] each, seeded from TEXTURE_SEED so every build draws the same facades; `windows` False: the
+    walls alone, with the grain the windowed textures have."""
     rng = np.random.default_rng((TEXTURE_SEED, 1))
-    return {name: facade(rng, wall, glass) for name, (wall, glass) in facades.items()}
+    return {name: facade(rng, wall, glass, windows) for name, (wall, glass) in facades.items()}
