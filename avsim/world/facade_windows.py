@@ -17,7 +17,7 @@ centred on the face. They are the texture's windows, at the texture's size and p
   pane takes the mean over its rows of the texture's sky reflection.
 
 The sill is not drawn. A building gets three mesh geoms: its frames, its upper panes and its lower panes.
-So a frame costs a few draw calls a building, plus four vertices a quad.
+A render pays three more draw calls a building, and four vertices a quad.
 """
 
 from __future__ import annotations
