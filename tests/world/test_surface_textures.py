@@ -1,5 +1,7 @@
 """Procedural surface textures: fixed by their seed, the flat colours on average, detail at the texel scale."""
 
+import hashlib
+
 import numpy as np
 import pytest
 
@@ -77,3 +79,12 @@ def test_worn_paint_gives_the_paint_materials_a_texture_and_leaves_the_others_al
     assert fresh.nmat == worn.nmat
     for name in ("asphalt", "grass", "facade_brick"):
         assert np.array_equal(fresh.mat_rgba[fresh.material(name).id], worn.mat_rgba[worn.material(name).id])
+
+
+def test_the_windowed_facade_textures_are_what_they_were_before_the_window_constants_were_shared():
+    """`facade` draws its window from the constants that `facade_windows` builds geometry from (2026-12-07);
+    the textures must stay the ones every `textured` result was measured on (sha256 at 3585995)."""
+    textures = surface_textures.facade_textures(props.FACADE_COLOURS)
+    digests = {name: hashlib.sha256(rgb.tobytes()).hexdigest()[:12] for name, rgb in textures.items()}
+    assert digests == {"facade_brick": "76aa3ee68051", "facade_concrete": "5d260ff5ca4d",
+                       "facade_glass": "199693552ce2", "facade_sand": "82e33dfa470e"}
