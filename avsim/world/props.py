@@ -51,6 +51,8 @@ FACADE_COLOURS = {  # wall, window
 
 
 PAINTS = ("paint_white", "paint_yellow")
+# A textured facade repeats one bay by one storey (`surface_textures.facade`): repeats per metre, across and up.
+_FACADE_REPEAT_PER_M = (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M)
 
 
 def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool = False,
@@ -65,13 +67,12 @@ def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool 
     window_geometry (scenario.facade_windows = "geometry"): each facade's wall without its windows too
     (`facade_windows.wall_material`), its flat colour or its texture's wall, for facades whose windows are geometry.
     """
-    if window_geometry:
-        walls = st.facade_textures(FACADE_COLOURS, windows=False) if textured else {}
+    if window_geometry and textured:
+        for name, rgb in st.facade_textures(FACADE_COLOURS, windows=False).items():
+            _add_textured_material(spec, wall_material(name), rgb, _FACADE_REPEAT_PER_M)
+    elif window_geometry:
         for name, (wall, _) in FACADE_COLOURS.items():
-            if textured:
-                _add_textured_material(spec, wall_material(name), walls[name], (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
-            else:
-                spec.add_material(name=wall_material(name), rgba=[*wall, 1.0])
+            spec.add_material(name=wall_material(name), rgba=[*wall, 1.0])
     textures = st.ground_textures(_FLAT_COLOURS) if textured else {}
     if worn_paint:
         rng = np.random.default_rng((st.TEXTURE_SEED, 2))
@@ -85,7 +86,7 @@ def add_materials(spec: mujoco.MjSpec, textured: bool = False, worn_paint: bool 
             _add_textured_material(spec, name, textures[name], (1 / span_m, 1 / span_m))
     if textured:
         for name, rgb in st.facade_textures(FACADE_COLOURS).items():
-            _add_textured_material(spec, name, rgb, (1 / st.FACADE_BAY_M, 1 / st.FACADE_STOREY_M))
+            _add_textured_material(spec, name, rgb, _FACADE_REPEAT_PER_M)
         return
     # Facades: a checker texture repeated per metre reads as rows of windows.
     for name, (wall, window) in FACADE_COLOURS.items():
