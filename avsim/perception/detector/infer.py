@@ -22,7 +22,7 @@ is bf16 where oneDNN runs it on this CPU and fp32 elsewhere (`cpu_bf16.detector_
 differ from fp32's by bf16 rounding (`avsim.perception.detector.precision_agreement` measures by
 how much). The bf16 copy computes what bfloat16 autocast on the float32 network computes, bit for bit
 (autocast rounds the same weights, biases and inputs to bf16 before each convolution, and every other
-layer here runs on its bf16 outputs either way; `tests/perception/detector/test_infer.py` checks it),
+layer here runs on its bf16 outputs either way; `tests/perception/detector/test_detector_infer.py` checks it),
 without casting the weights again on every call: 7.1 against 7.8 ms a front crop at 1 thread.
 
 Batches (`detect_many`, the lock-step batch of `avsim.lockstep`): a frame's
