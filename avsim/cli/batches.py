@@ -35,7 +35,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         raise ConfigError("give --out (a new reproduction's parent folder) or --resume FOLDER (the one to finish), not both")
     out = reproduce(args.out or "results", resume=args.resume, quick=args.quick, seeds=args.seeds, workers=args.workers, experiment_paths=paths, progress=not args.no_progress,
                     backend=args.backend, address=args.address, batch=args.batch, everything=args.all, yes=args.yes,
-                    rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting, overrides=parse_set(args.set))
+                    rrd=args.rrd_mode, mcap=args.mcap_mode, setting=args.setting, overrides=parse_set(args.set),
+                    cells=args.cells)
     print((out / "report.md").read_text())
     recordings = _recordings_written(out, args.rrd_mode, args.mcap_mode)
     print(f"wrote {out}/report.md, runs.jsonl and figures{recordings}")
@@ -104,6 +105,10 @@ def add_commands(sub) -> None:
                              "the rest with the same selection flags, then write the report")
     add_input_argument(rep, "--experiments", nargs="+", metavar="FILE",
                      help="experiment files to run instead of the study's (experiments/*.toml)")
+    rep.add_argument("--cells", nargs="+", metavar="PATTERN",
+                     help="run only the cells whose names match one of these shell-style patterns, quoted, e.g. "
+                          "--cells 'Town03 *' (case counts; a file left with no cell is not run; each run is the "
+                          "whole file's, bit for bit)")
     add_setting_flag(rep, "every run", "a file that sets one of its keys itself is refused")
     add_set_flag(rep, "every run", "a key on which a file's cells differ, or that its [vary] draws, is refused")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -11,6 +11,8 @@ writes `results/<timestamp>/`:
     experiments/          the experiment files as they were run
     set.json              the --set values every run was given, when there were any
                           (`avsim.experiments.set_overrides`), for a resume to check
+    cells.json            the --cells patterns, when some cells were chosen
+                          (`avsim.experiments.cell_selection`), for a resume to check
     manifest.json         command, versions, workers, wall time, failures
     report.md, *.png      the study's tables beside ours, and the figures
 
@@ -31,13 +33,14 @@ import datetime as dt
 import os
 import shutil
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from avsim.errors import ConfigError, RunsFailedError
 from avsim.workers import DEFAULT_BATCH
 from avsim.experiments.batch import check_backend, resolve_workers
+from avsim.experiments.cell_selection import CELLS_FILE, cell_flags, check_resumed_cells, record_cells, select_cells
 from avsim.experiments.ray_backend import cluster_nodes
 from avsim.software import software_versions
 from avsim.experiments.figures import FIGURE_FILES
@@ -85,9 +88,10 @@ SETTING_EXPERIMENTS = ("coco_detector_town10",)
 
 def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, everything: bool = False,
                yes: bool = False, seeds: int | None = None, setting: str = BASELINE,
-               overrides: Mapping[str, Any] | None = None) -> list[Experiment]:
+               overrides: Mapping[str, Any] | None = None, cells: Sequence[str] | None = None) -> list[Experiment]:
     """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
-    experiment file); `quick` keeps one seed per cell, `seeds` runs seeds 0 .. seeds - 1 in every
+    experiment file), with only the cells whose names match one of `cells` (shell-style patterns,
+    `avsim.experiments.cell_selection`; None: every cell); `quick` keeps one seed per cell, `seeds` runs seeds 0 .. seeds - 1 in every
     cell instead of each file's own count. setting: one of `avsim realism`'s render settings, applied
     to every cell (`avsim.experiments.render_setting`). overrides: the --set values (nested, as
     `avsim.cli.overrides.parse_set` gives them), given to every cell over the setting
@@ -100,8 +104,8 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     if setting not in SETTINGS:
         raise ConfigError(f"unknown render setting {setting!r}; choose one of {', '.join(SETTINGS)} (docs/realism.md)")
     setting_keys = SETTINGS[setting].keys
-    experiments = [experiment_with_set(under_setting(load_experiment(path), SETTINGS[setting]), overrides or {},
-                                       setting_keys) for path in paths]
+    experiments = select_cells([experiment_with_set(under_setting(load_experiment(path), SETTINGS[setting]),
+                                                    overrides or {}, setting_keys) for path in paths], cells)
     stems = [e.path.stem for e in experiments]
     if len(set(stems)) != len(stems):
         raise ConfigError(f"two experiment files share a name ({', '.join(stems)}); their runs would mix in the results")
@@ -148,7 +152,8 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
               experiment_paths: list[Path] | None = None, progress: bool = True, backend: str = "local",
               address: str | None = None, batch: int = DEFAULT_BATCH, everything: bool = False, yes: bool = False,
               rrd: str = DEFAULT_RRD, mcap: str = DEFAULT_MCAP, resume: str | os.PathLike | None = None,
-              setting: str = BASELINE, overrides: Mapping[str, Any] | None = None) -> Path:
+              setting: str = BASELINE, overrides: Mapping[str, Any] | None = None,
+              cells: Sequence[str] | None = None) -> Path:
     """Run the study's experiments (`everything`: and every other experiment file, `MORE_EXPERIMENTS`);
     returns the results folder (see the module docstring).
 
@@ -161,6 +166,9 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     stood in each file's [defaults]; a key on which a file's cells differ, or that [vary] draws, is refused
     (`avsim.experiments.set_overrides`).
 
+    cells: run only the cells whose names match one of these shell-style patterns
+    (`avsim.experiments.cell_selection`); None: every cell.
+
     resume: a results folder of an earlier `reproduce` to finish instead of making a new one under
     `results_root`: its ok runs are kept and the rest run (module docstring).
 
@@ -172,7 +180,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
     if everything and experiment_paths:
         raise ConfigError("--all runs every experiment file; leave out --experiments, or name the files without --all")
     overrides = dict(overrides or {})
-    experiments = load_study(experiment_paths, quick, everything, yes, seeds, setting, overrides)
+    experiments = load_study(experiment_paths, quick, everything, yes, seeds, setting, overrides, cells)
     check_modes(rrd, mcap)
     check_backend(backend, address)
     workers = resolve_workers(workers, address)
@@ -182,6 +190,7 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         out = Path(resume)
         existing = resumable_records(out)
         check_resumed_selection(out, experiments, yes=yes)
+        check_resumed_cells(out, experiments, yes=yes)
         check_resumed_setting(out, experiments, existing, yes=yes)
         check_resumed_set(out, flat_items(overrides), allowed=yes, other_fix="add --yes to run the others into it")
     else:
@@ -189,20 +198,20 @@ def reproduce(results_root: str | os.PathLike = "results", *, quick: bool = Fals
         existing = []
     selection = " ".join(part for part in (
         "--all" if everything else "", "--quick" if quick else "", f"--seeds {seeds}" if seeds is not None else "",
-        "--experiments " + " ".join(map(str, experiment_paths)) if experiment_paths else "",
+        "--experiments " + " ".join(map(str, experiment_paths)) if experiment_paths else "", cell_flags(cells),
         f"--setting {setting}" if setting != BASELINE else "", set_flags(overrides),
         f"--backend {backend}" if backend != "local" else "", f"--address {address}" if address else "",
         recording_flags(rrd, mcap).strip()) if part)
     # Every file it writes into the folder (the module docstring) is checked before the first run: a --resume
     # folder may hold a folder where its report goes. A start that fails before the first run (a Ray cluster that
     # cannot be reached) leaves no new folder.
-    files = (REPRODUCE_RUNS, "manifest.json", "report.md", SET_FILE, *FIGURE_FILES,
+    files = (REPRODUCE_RUNS, "manifest.json", "report.md", SET_FILE, CELLS_FILE, *FIGURE_FILES,
              *(f"experiments/{experiment.path.name}" for experiment in experiments))
     folders = recording_folders([experiment.path.stem for experiment in experiments], rrd=rrd, mcap=mcap)
     with locked_output(out, "avsim reproduce", results_name=REPRODUCE_RUNS, files=files, folders=folders):
         return _reproduce_into(out, experiments, existing, selection=selection, workers=workers, progress=progress,
                                backend=backend, address=address, started=started, started_at=started_at, batch=batch,
-                               rrd=rrd, mcap=mcap, resumed=resume is not None, overrides=overrides)
+                               rrd=rrd, mcap=mcap, resumed=resume is not None, overrides=overrides, cells=cells)
 
 
 def check_resumed_selection(folder: Path, experiments: list[Experiment], *, yes: bool) -> None:
@@ -271,13 +280,14 @@ def resumable_records(folder: Path) -> list[dict]:
 def _reproduce_into(out: Path, experiments: list[Experiment], existing: list[dict], *, selection: str,
                     workers: int | None, progress: bool, backend: str, address: str | None, started: float,
                     started_at: dt.datetime, batch: int, rrd: str, mcap: str, resumed: bool,
-                    overrides: Mapping[str, Any]) -> Path:
+                    overrides: Mapping[str, Any], cells: Sequence[str] | None) -> Path:
     from avsim.experiments.reproduce_report import write_report
 
     history = manifest_history(out / "manifest.json") if resumed else []
     for experiment in experiments:
         shutil.copy2(experiment.path, _mkdir(out / "experiments") / experiment.path.name)
     record_set(out, flat_items(overrides))
+    record_cells(out, cells, resumed=resumed)
     plan = specs_for(experiments).then(lambda specs: with_recordings(specs, out, rrd=rrd, mcap=mcap))
     nodes = cluster_nodes(backend, address)
     # Runs are matched by name as well as config: two experiment files may share a config.
