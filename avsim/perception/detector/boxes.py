@@ -10,6 +10,7 @@ from the box height needs.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import torch
@@ -30,17 +31,30 @@ def flatten_outputs(outputs: list[torch.Tensor], strides: tuple[int, ...]) -> tu
 
     outputs: per stride, (B, K, H_s, W_s).
     Returns preds (B, N, K), centres (N, 2) [input px] and cell strides (N,) [px],
-    N = sum over scales of H_s * W_s.
+    N = sum over scales of H_s * W_s. The centres and strides are shared between calls with the
+    same map sizes (`_cell_grid`): read them, never write into them.
     """
     if len(outputs) != len(strides):
         raise ValueError(f"got {len(outputs)} output maps for {len(strides)} strides")
-    preds, centres, cell_strides = [], [], []
-    for out, stride in zip(outputs, strides):
-        b, k, h, w = out.shape
-        preds.append(out.reshape(b, k, h * w).transpose(1, 2))
-        centres.append(cell_centres(h, w, stride, out.device))
-        cell_strides.append(torch.full((h * w,), float(stride), device=out.device))
-    return torch.cat(preds, dim=1), torch.cat(centres, dim=0), torch.cat(cell_strides, dim=0)
+    preds = [out.reshape(out.shape[0], out.shape[1], out.shape[2] * out.shape[3]).transpose(1, 2) for out in outputs]
+    shapes = tuple((out.shape[2], out.shape[3], stride) for out, stride in zip(outputs, strides))
+    centres, cell_strides = _cell_grid(shapes, str(outputs[0].device))
+    return torch.cat(preds, dim=1), centres, cell_strides
+
+
+@functools.lru_cache(maxsize=64)
+def _cell_grid(shapes: tuple[tuple[int, int, int], ...], device: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """Cell centres (N, 2) [input px] and strides (N,) [px] of maps of these (H_s, W_s, stride) on `device`.
+
+    Cached because building the grid was about a quarter of decoding a frame's detections, at every
+    control step, for maps whose sizes never change within a run. Built outside inference mode, so
+    that a grid first made while detecting can later enter a loss or an attack's objective, where
+    autograd saves it.
+    """
+    with torch.inference_mode(False):
+        centres = torch.cat([cell_centres(h, w, stride, device) for h, w, stride in shapes], dim=0)
+        cell_strides = torch.cat([torch.full((h * w,), float(stride), device=device) for h, w, stride in shapes], dim=0)
+    return centres, cell_strides
 
 
 def decode_boxes(raw: torch.Tensor, centres: torch.Tensor, strides: torch.Tensor) -> torch.Tensor:
