@@ -50,6 +50,15 @@ def _children(pid: int) -> list[int]:
     return children
 
 
+def _cmdline(pid: int) -> bytes:
+    """The command line of process `pid`, or b"" once it has exited: a short-lived child may go between
+    `_children` listing it and this reading it."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return b""
+
+
 def _alive(pid: int) -> bool:
     try:
         state = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -199,7 +208,7 @@ def _kill_sweep_and_time_its_workers(tmp_path: Path, backend_args: list[str], wo
 
 def test_no_pool_worker_outlives_a_killed_sweep(tmp_path):
     def pool_workers(pid: int) -> list[int]:
-        return [c for c in _children(pid) if b"spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes()]
+        return [c for c in _children(pid) if b"spawn_main" in _cmdline(c)]
 
     _kill_sweep_and_time_its_workers(tmp_path, [], pool_workers)
 
@@ -212,6 +221,6 @@ def test_no_ray_worker_outlives_a_killed_sweep(tmp_path):
     def ray_workers(pid: int) -> list[int]:
         # Ray's task workers are the raylet's children named ray::execute; the raylet is the driver's child.
         return [w for raylet in _children(pid) for w in _children(raylet)
-                if Path(f"/proc/{w}/cmdline").read_bytes().startswith(b"ray::execute")]
+                if _cmdline(w).startswith(b"ray::execute")]
 
     _kill_sweep_and_time_its_workers(tmp_path, ["--backend", "ray"], ray_workers)
