@@ -43,7 +43,7 @@ def select_cells(experiments: Sequence[Experiment], patterns: Sequence[str] | No
         return list(experiments)
     names = [cell.name for experiment in experiments for cell in experiment.cells]
     for pattern in patterns:
-        if not any(fnmatch.fnmatchcase(name, pattern) for name in names):
+        if not any(matches(name, (pattern,)) for name in names):
             examples = ", ".join(f'"{name}"' for name in names[:3])
             raise ConfigError(f"--cells {shlex.quote(pattern)} matches no cell of the {len(experiments)} experiment "
                               f"file(s) (cells are named like {examples}); a pattern matches a whole name, case "

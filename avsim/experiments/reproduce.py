@@ -91,9 +91,9 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
                overrides: Mapping[str, Any] | None = None, cells: Sequence[str] | None = None) -> list[Experiment]:
     """The experiments to run: `experiment_paths`, or the study's (`everything`: and every other
     experiment file), with only the cells whose names match one of `cells` (shell-style patterns,
-    `avsim.experiments.cell_selection`; None: every cell); `quick` keeps one seed per cell, `seeds` runs seeds 0 .. seeds - 1 in every
-    cell instead of each file's own count. setting: one of `avsim realism`'s render settings, applied
-    to every cell (`avsim.experiments.render_setting`). overrides: the --set values (nested, as
+    `avsim.experiments.cell_selection`; None: every cell); `quick` keeps one seed per cell, `seeds`
+    runs seeds 0 .. seeds - 1 in every cell instead of each file's own count. setting: one of
+    `avsim realism`'s render settings, applied to every cell (`avsim.experiments.render_setting`). overrides: the --set values (nested, as
     `avsim.cli.overrides.parse_set` gives them), given to every cell over the setting
     (`avsim.experiments.set_overrides`). yes: allow a plan of more than `plan_size.RUNS_WITHOUT_YES`
     runs (counted before any run is built)."""
