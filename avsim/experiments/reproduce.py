@@ -93,10 +93,10 @@ def load_study(experiment_paths: list[Path] | None = None, quick: bool = False, 
     experiment file), with only the cells whose names match one of `cells` (shell-style patterns,
     `avsim.experiments.cell_selection`; None: every cell); `quick` keeps one seed per cell, `seeds`
     runs seeds 0 .. seeds - 1 in every cell instead of each file's own count. setting: one of
-    `avsim realism`'s render settings, applied to every cell (`avsim.experiments.render_setting`). overrides: the --set values (nested, as
-    `avsim.cli.overrides.parse_set` gives them), given to every cell over the setting
-    (`avsim.experiments.set_overrides`). yes: allow a plan of more than `plan_size.RUNS_WITHOUT_YES`
-    runs (counted before any run is built)."""
+    `avsim realism`'s render settings, applied to every cell (`avsim.experiments.render_setting`).
+    overrides: the --set values (nested, as `avsim.cli.overrides.parse_set` gives them), given to
+    every cell over the setting (`avsim.experiments.set_overrides`). yes: allow a plan of more than
+    `plan_size.RUNS_WITHOUT_YES` runs (counted before any run is built)."""
     if quick and seeds is not None:
         raise ConfigError("--quick runs one seed per cell and --seeds N runs N; give one of them")
     names = STUDY_EXPERIMENTS + (MORE_EXPERIMENTS if everything else ())
