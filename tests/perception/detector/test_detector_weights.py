@@ -105,16 +105,19 @@ def test_export_keeps_the_weights_and_drops_the_training_state(tmp_path):
             assert torch.equal(a, b)
 
 
-def test_the_scene_trained_weights_load_beside_the_shipped_ones_and_differ():
-    """models/sign_detector_scenes.pt: the same network retrained on renders under every scene setting
-    (docs/realism_networks.md, "The own detector retrained on the full scene")."""
+@pytest.mark.parametrize("file_name, data_dir", [("sign_detector_scenes.pt", "data/signs_all"),
+                                                  ("sign_detector_windows.pt", "data/signs_windows")])
+def test_the_retrained_weights_load_beside_the_shipped_ones_and_differ(file_name, data_dir):
+    """The same network retrained on other renders (docs/realism_networks.md): sign_detector_scenes.pt under
+    every scene setting, sign_detector_windows.pt under window_geometry."""
     from avsim.perception.detector.weights import SHIPPED_WEIGHTS
 
     shipped, shipped_meta = load_weights(SHIPPED_WEIGHTS)
-    scenes, scenes_meta = load_weights(SHIPPED_WEIGHTS.with_name("sign_detector_scenes.pt"))
-    assert scenes_meta["arch"] == shipped_meta["arch"] and scenes_meta["input_size"] == shipped_meta["input_size"]
-    assert scenes_meta["data_dir"] == "data/signs_all" and scenes_meta["epochs"] == 6
-    differ = [name for name, tensor in scenes.state_dict().items() if not torch.equal(tensor, shipped.state_dict()[name])]
+    retrained, retrained_meta = load_weights(SHIPPED_WEIGHTS.with_name(file_name))
+    assert retrained_meta["arch"] == shipped_meta["arch"] and retrained_meta["input_size"] == shipped_meta["input_size"]
+    assert retrained_meta["data_dir"] == data_dir and retrained_meta["epochs"] == 6
+    differ = [name for name, tensor in retrained.state_dict().items()
+              if not torch.equal(tensor, shipped.state_dict()[name])]
     assert len(differ) > 10
 
 
