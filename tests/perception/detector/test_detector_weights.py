@@ -116,8 +116,8 @@ def test_the_retrained_weights_load_beside_the_shipped_ones_and_differ(file_name
     retrained, retrained_meta = load_weights(SHIPPED_WEIGHTS.with_name(file_name))
     assert retrained_meta["arch"] == shipped_meta["arch"] and retrained_meta["input_size"] == shipped_meta["input_size"]
     assert retrained_meta["data_dir"] == data_dir and retrained_meta["epochs"] == 6
-    differ = [name for name, tensor in retrained.state_dict().items()
-              if not torch.equal(tensor, shipped.state_dict()[name])]
+    shipped_tensors = shipped.state_dict()
+    differ = [name for name, tensor in retrained.state_dict().items() if not torch.equal(tensor, shipped_tensors[name])]
     assert len(differ) > 10
 
 
