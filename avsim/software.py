@@ -20,6 +20,7 @@ import mujoco
 import numpy
 import torch
 
+from avsim.machine import cpu_model
 from avsim.perception.cpu_bf16 import auto_arithmetic
 from avsim.sensors.gl import gl_description
 
@@ -36,20 +37,6 @@ def software_versions() -> dict[str, str]:
             "numpy": numpy.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
             "cpu": cpu_model(), "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "precision_auto": auto_arithmetic(), "gl": gl_description() or NO_GL}
-
-
-def cpu_model(cpuinfo_path: str = "/proc/cpuinfo") -> str:
-    """The CPU's model as Linux names it (the first "model name" in /proc/cpuinfo, e.g. "AMD EPYC 9B14"),
-    else what `platform.processor()` says, else "unknown"."""
-    try:
-        with open(cpuinfo_path, encoding="utf-8", errors="replace") as cpuinfo:
-            for line in cpuinfo:
-                key, _, value = line.partition(":")
-                if key.strip() == "model name" and value.strip():
-                    return value.strip()
-    except OSError:
-        pass  # not Linux: fall back below
-    return platform.processor() or "unknown"
 
 
 # The versions that decide a run's numbers: where another machine differs from this one in one of them, its

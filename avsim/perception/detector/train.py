@@ -12,13 +12,18 @@ Determinism: the model init runs under `torch.manual_seed(seed)` inside
 `torch.random.fork_rng()` (global RNG state untouched afterwards); the data order of epoch
 e comes from a `torch.Generator` seeded from (seed, e), augmentation from (seed, e, index);
 the learning rate is a pure function of the step. So the same seed gives the same weights,
-and resuming after any epoch gives the same weights as an uninterrupted run.
+and resuming after any epoch gives the same weights as an uninterrupted run, on the same
+arithmetic: the CPU, the instruction set torch's and oneDNN's kernels use, and the thread count
+decide the order in which the convolutions sum, and a change in the last bits grows over the
+steps (measured on the shipped recipe: capping the kernels at AVX2, or one thread instead of two,
+moves the logged loss by step 30). So each epoch's history entry records where it ran (`ran_on`).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -32,6 +37,7 @@ from tqdm import tqdm
 
 from avsim.boundary import run_guarded
 from avsim.errors import AvsimError, ConfigError, Interrupted
+from avsim.machine import cpu_model
 from avsim.outputs import check_declared_outputs
 from avsim.perception.base import SIGN_CLASSES
 from avsim.perception.detector.data import SignDataset, collate
@@ -81,6 +87,15 @@ def _check_finite(losses: dict[str, torch.Tensor], epoch: int, step: int, lr: fl
         if not torch.isfinite(value):
             raise TrainingError(f"detector loss term '{name}' became {value.item()} at epoch {epoch} step {step}; "
                                 f"lower the learning rate (now {lr:.2e}) or check the dataset boxes")
+
+
+def ran_on(device: str) -> dict[str, Any]:
+    """The arithmetic an epoch runs on here: the CPU's model, the instruction set of torch's CPU kernels
+    (`cpu_capability`), oneDNN's cap on its own (`ONEDNN_MAX_CPU_ISA`, "unset" by default), torch's thread
+    count and the device. Training gives the same weights bit for bit only where all of these are the same."""
+    return {"cpu": cpu_model(), "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+            "onednn_max_cpu_isa": os.environ.get("ONEDNN_MAX_CPU_ISA", "unset"),
+            "torch_threads": torch.get_num_threads(), "device": str(device)}
 
 
 def _check_resumable(meta: dict[str, Any], saved: dict[str, Any], path: Path) -> None:
@@ -151,6 +166,10 @@ def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_siz
         optimizer.load_state_dict(checkpoint["optimizer"])
         start_epoch, step, history = int(checkpoint["epoch"]), int(state["step"]), list(state["history"])
         tqdm.write(f"resuming {out_path} after epoch {start_epoch}/{epochs} (step {step})")
+        earlier = history[-1].get("ran_on") if history else None  # weights from before 2026-12-07 lack it
+        if earlier is not None and earlier != ran_on(device):
+            tqdm.write(f"note: epoch {start_epoch} ran on {earlier}, the rest runs on {ran_on(device)}; the weights "
+                       "will not equal an uninterrupted run's bit for bit")
     elif resume:
         tqdm.write(f"no checkpoint at {out_path}; starting from epoch 1")
 
@@ -191,6 +210,7 @@ def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_siz
             record["map50"] = evaluate_map50(ema.model, val_set, device=device)
             record["mAP50"] = mean_ap(record["map50"])
         record["seconds"] = time.perf_counter() - started
+        record["ran_on"] = ran_on(device)
         history.append(record)
         tqdm.write(f"epoch {epoch + 1}/{epochs}: " + " ".join(f"{k} {record[k]:.4f}" for k in LOSS_TERMS)
                    + (f" val mAP50 {record['mAP50']:.3f} (" + ", ".join(f"{c} {ap:.3f}" for c, ap in record["map50"].items()) + ")"

@@ -36,6 +36,10 @@ def test_smoke_training_lowers_the_loss_and_writes_loadable_weights(smoke_run):
     assert history[-1]["total"] < history[0]["total"]
     assert all(math.isfinite(h[k]) for h in history for k in ("obj", "cls", "box", "total"))
     assert set(history[-1]["map50"]) == {"stop_sign", "yield", "speed_limit"}
+    # Each epoch says where its arithmetic ran, since another CPU or thread count gives other weights.
+    assert all(h["ran_on"] == train_module.ran_on("cpu") for h in history)
+    assert history[0]["ran_on"]["torch_threads"] == torch.get_num_threads()
+    assert history[0]["ran_on"]["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     raw = torch.load(out, weights_only=True, map_location="cpu")
     assert raw["epoch"] == 3 and raw["meta"]["input_size"] == list(SMALL_INPUT) and raw["meta"]["seed"] == 0
     model, meta = load_weights(out)
@@ -57,7 +61,7 @@ def _interrupt_after_first_checkpoint(monkeypatch):
     monkeypatch.setattr(train_module, "save_checkpoint", save_then_die)
 
 
-def test_resume_after_epoch_one_matches_an_uninterrupted_run(synthetic_dataset, tmp_path, monkeypatch):
+def test_resume_after_epoch_one_matches_an_uninterrupted_run(synthetic_dataset, tmp_path, monkeypatch, capsys):
     kwargs = dict(epochs=2, batch_size=8, lr=2e-3, seed=5, input_size=SMALL_INPUT, log_every=0, progress=False)
     straight = tmp_path / "straight.pt"
     train(synthetic_dataset, straight, **kwargs)
@@ -70,6 +74,7 @@ def test_resume_after_epoch_one_matches_an_uninterrupted_run(synthetic_dataset, 
     assert torch.load(resumed, weights_only=True)["epoch"] == 1
     result = train(synthetic_dataset, resumed, resume=True, **kwargs)
     assert [h["epoch"] for h in result["history"]] == [1, 2]
+    assert "will not equal" not in capsys.readouterr().out  # the same arithmetic: no note
 
     a = torch.load(straight, weights_only=True)
     b = torch.load(resumed, weights_only=True)
@@ -80,6 +85,21 @@ def test_resume_after_epoch_one_matches_an_uninterrupted_run(synthetic_dataset, 
     for name, value in a["train_state"]["raw_model"].items():
         assert torch.equal(value, b["train_state"]["raw_model"][name]), name
     assert a["train_state"]["step"] == b["train_state"]["step"]
+
+
+def test_resume_on_other_arithmetic_says_the_weights_will_differ(synthetic_dataset, tmp_path, monkeypatch, capsys):
+    kwargs = dict(epochs=2, batch_size=16, seed=0, input_size=SMALL_INPUT, log_every=0, progress=False)
+    out = tmp_path / "w.pt"
+    with monkeypatch.context() as patch:
+        _interrupt_after_first_checkpoint(patch)
+        with pytest.raises(KeyboardInterrupt):
+            train(synthetic_dataset, out, **kwargs)
+    real = train_module.ran_on
+    monkeypatch.setattr(train_module, "ran_on", lambda device: {**real(device), "torch_threads": 97})
+    capsys.readouterr()
+    result = train(synthetic_dataset, out, resume=True, **kwargs)
+    assert "will not equal an uninterrupted run's bit for bit" in capsys.readouterr().out
+    assert [h["ran_on"]["torch_threads"] for h in result["history"]] == [torch.get_num_threads(), 97]
 
 
 def test_resume_refuses_different_settings(synthetic_dataset, tmp_path):
