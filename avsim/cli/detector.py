@@ -56,7 +56,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from avsim.perception.detector.weights import resolve_weights_path
+    from avsim.perception.detector.weights import resolve_weights_path, training_sentence
     from avsim.perception.detector.infer import SignDetectorRunner
     from avsim.perception.evaluation import evaluate, write_report
 
@@ -67,7 +67,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         report = evaluate(runner.detect, args.data, conf_threshold=args.conf, split=args.split, limit=args.limit,
                           progress=not args.no_progress)
         report_path, plot_path = write_report(report, args.out,
-                                              f"Sign detector {weights.name} on {args.data} ({args.split})")
+                                              f"Sign detector {weights.name} on {args.data} ({args.split})",
+                                              about=training_sentence(runner.meta))
     print(report_path.read_text())
     print(f"wrote {report_path} and {plot_path}")
     return 0

@@ -169,8 +169,9 @@ def evaluate(detect: Detect, data_dir: str | Path, conf_threshold: float, split:
     )
 
 
-def write_report(report: EvalReport, out_dir: str | Path, title: str) -> tuple[Path, Path]:
-    """Write report.md and recall_vs_distance.png into out_dir."""
+def write_report(report: EvalReport, out_dir: str | Path, title: str, about: str = "") -> tuple[Path, Path]:
+    """Write report.md and recall_vs_distance.png into out_dir; `about` (e.g. how the weights were trained) is a
+    paragraph under the title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,7 +198,7 @@ def write_report(report: EvalReport, out_dir: str | Path, title: str) -> tuple[P
     fig.savefig(plot_path)
     plt.close(fig)
 
-    lines = [f"# {title}", "", f"{report.n_images} held-out images (town layout seed 0, sun elevation 40-55 deg); "
+    lines = [f"# {title}", "", *([about, ""] if about else []), f"{report.n_images} held-out images (town layout seed 0, sun elevation 40-55 deg); "
              f"confidence threshold {report.conf_threshold}.", "", "| class | AP@0.5 |", "|---|---|"]
     lines += [f"| {cls} | {ap:.3f} |" for cls, ap in report.ap50.items()]
     lines += ["", "| distance | stop signs | recall | recall, 95% interval | mean confidence | median pinhole error |",

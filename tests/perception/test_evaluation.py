@@ -78,8 +78,10 @@ def test_pinhole_error_uses_the_detected_box_height(tiny_split):
 
 def test_report_writes_markdown_and_plot(tiny_split, tmp_path):
     report = evaluate(_replay([[], [], [], []]), tiny_split, conf_threshold=0.5, progress=False)
-    report_path, plot_path = write_report(report, tmp_path / "eval", "test")
-    assert "| stop_sign |" in report_path.read_text() and plot_path.stat().st_size > 1000
+    report_path, plot_path = write_report(report, tmp_path / "eval", "test", about="Trained for 6 epochs.")
+    text = report_path.read_text()
+    assert "| stop_sign |" in text and plot_path.stat().st_size > 1000
+    assert text.splitlines()[:3] == ["# test", "", "Trained for 6 epochs."]
 
 
 def _never_called(image, camera):

@@ -130,6 +130,32 @@ def load_weights(path: str | Path) -> tuple[SignDetector, dict[str, Any]]:
     return model.eval(), meta
 
 
+def _where(ran_on: dict[str, Any]) -> str:
+    """One epoch's `ran_on` in words: "CPU (ISA kernels, oneDNN cap X, N threads)"."""
+    threads = ran_on.get("torch_threads", "?")
+    return (f"{ran_on.get('cpu', '?')} ({ran_on.get('cpu_capability', '?')} kernels, oneDNN cap "
+            f"{ran_on.get('onednn_max_cpu_isa', '?')}, {threads} thread{'' if threads == 1 else 's'})")
+
+
+def training_sentence(meta: dict[str, Any]) -> str:
+    """One sentence on how a checkpoint's weights were trained, from its `meta`: epochs, seed, data, and where
+    each epoch's arithmetic ran (the `ran_on` that training records since 2026-12-07), or that it is not recorded.
+
+    The same data and seed on other arithmetic give other weights (docs/perception.md), so a report that scores
+    weights names the training they are. `meta` comes from a file: any field may be missing or malformed.
+    """
+    history = meta.get("history") if isinstance(meta.get("history"), list) else []
+    data = f" of {meta['data_dir']}" if isinstance(meta.get("data_dir"), str) else ""
+    sentence = (f"Trained for {len(history) or meta.get('epochs', '?')} epochs with seed {meta.get('seed', '?')} on "
+                f"{meta.get('train_images', '?')} images{data}")
+    places = [entry.get("ran_on") if isinstance(entry, dict) else None for entry in history]
+    if not places or any(not isinstance(place, dict) for place in places):
+        return (sentence + "; where its arithmetic ran (CPU, kernels, threads) is not recorded, and the same data and "
+                "seed give these weights only on the same arithmetic.")
+    distinct = [place for i, place in enumerate(places) if place not in places[:i]]
+    return sentence + ", on " + ", then on ".join(_where(place) for place in distinct) + "."
+
+
 def export_weights(checkpoint_path: str | Path, out_path: str | Path) -> Path:
     """Write the deployable part of a training checkpoint (model weights and meta) to `out_path`.
 

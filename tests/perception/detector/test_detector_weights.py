@@ -9,7 +9,7 @@ import torch
 
 from avsim.errors import AvsimError
 from avsim.perception.detector.model import build_detector
-from avsim.perception.detector.weights import WeightsError, load_weights, save_checkpoint
+from avsim.perception.detector.weights import WeightsError, load_weights, save_checkpoint, training_sentence
 
 META = {"arch": {"width_mult": 0.5, "depth": 1, "num_classes": 3, "act": "leaky_relu"}, "input_size": [320, 256],
         "class_names": ["stop_sign", "yield", "speed_limit"], "seed": 0, "epochs": 1}
@@ -127,3 +127,24 @@ def test_a_device_or_a_pipe_as_weights_is_refused_without_reading_it(tmp_path):
     for path, kind in (("/dev/zero", "a device"), (pipe, r"a pipe \(FIFO\)")):
         with pytest.raises(WeightsError, match=f"is {kind}, not a regular file"):
             load_weights(path)
+
+
+HERE = {"cpu": "AMD EPYC 9B14", "cpu_capability": "AVX512", "onednn_max_cpu_isa": "unset", "torch_threads": 2,
+        "device": "cpu"}
+
+
+def test_the_training_sentence_names_where_each_epoch_ran():
+    meta = {**META, "seed": 1, "train_images": 6000, "data_dir": "data/signs",
+            "history": [{"epoch": 1, "ran_on": HERE}, {"epoch": 2, "ran_on": HERE}]}
+    assert training_sentence(meta) == ("Trained for 2 epochs with seed 1 on 6000 images of data/signs, on AMD EPYC 9B14 "
+                                       "(AVX512 kernels, oneDNN cap unset, 2 threads).")
+    resumed = {**meta, "history": [{"epoch": 1, "ran_on": HERE}, {"epoch": 2, "ran_on": {**HERE, "torch_threads": 1}}]}
+    assert training_sentence(resumed).endswith("2 threads), then on AMD EPYC 9B14 (AVX512 kernels, oneDNN cap unset, "
+                                               "1 thread).")
+
+
+@pytest.mark.parametrize("history", [None, [], [{"epoch": 1}], [{"epoch": 1, "ran_on": HERE}, {"epoch": 2}], "bad", [3]])
+def test_weights_from_before_ran_on_say_it_is_not_recorded(history):
+    meta = {**META, "history": history} if history is not None else dict(META)
+    sentence = training_sentence(meta)  # a malformed history is read, never raised on
+    assert "is not recorded, and the same data and seed give these weights only on the same arithmetic" in sentence
