@@ -198,7 +198,8 @@ def write_report(report: EvalReport, out_dir: str | Path, title: str, about: str
     fig.savefig(plot_path)
     plt.close(fig)
 
-    lines = [f"# {title}", "", *([about, ""] if about else []), f"{report.n_images} held-out images (town layout seed 0, sun elevation 40-55 deg); "
+    lines = [f"# {title}", "", *([about, ""] if about else []),
+             f"{report.n_images} held-out images (town layout seed 0, sun elevation 40-55 deg); "
              f"confidence threshold {report.conf_threshold}.", "", "| class | AP@0.5 |", "|---|---|"]
     lines += [f"| {cls} | {ap:.3f} |" for cls, ap in report.ap50.items()]
     lines += ["", "| distance | stop signs | recall | recall, 95% interval | mean confidence | median pinhole error |",

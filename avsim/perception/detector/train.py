@@ -166,9 +166,9 @@ def train(data_dir: str | Path, out_path: str | Path, epochs: int = 6, batch_siz
         optimizer.load_state_dict(checkpoint["optimizer"])
         start_epoch, step, history = int(checkpoint["epoch"]), int(state["step"]), list(state["history"])
         tqdm.write(f"resuming {out_path} after epoch {start_epoch}/{epochs} (step {step})")
-        earlier = history[-1].get("ran_on") if history else None  # weights from before 2026-12-07 lack it
-        if earlier is not None and earlier != ran_on(device):
-            tqdm.write(f"note: epoch {start_epoch} ran on {earlier}, the rest runs on {ran_on(device)}; the weights "
+        earlier, here = (history[-1].get("ran_on") if history else None), ran_on(device)  # older weights lack it
+        if earlier is not None and earlier != here:
+            tqdm.write(f"note: epoch {start_epoch} ran on {earlier}, the rest runs on {here}; the weights "
                        "will not equal an uninterrupted run's bit for bit")
     elif resume:
         tqdm.write(f"no checkpoint at {out_path}; starting from epoch 1")
