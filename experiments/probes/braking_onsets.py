@@ -8,9 +8,9 @@ each set of weights ran Table II's far cells over 30 seeds and what mattered was
     python experiments/probes/braking_onsets.py results/far_W results/far_other
 
 For each folder (its newest batch) and each experiment in it, it prints the finished runs that needed a stop and
-sorts them into four kinds: stopped for the sign (before it, and not resting beyond the braking gate), stopped
-for something else first (came to rest beyond the gate: a phantom braked the car), never braked, and braked too
-late (ran past after braking). Beside each kind, the distances before the sign at which braking began [m]: their
+sorts them by the outcome each record holds: stopped for the sign (before it, and not resting beyond the braking
+gate), stopped for something else first (came to rest beyond the gate: a phantom braked the car), never braked,
+braked too late (ran past after braking), and timed out before the sign. Beside each kind, the distances before the sign at which braking began [m]: their
 range, and the median over every run that braked. The Wilson 95 % interval is the stopped-for-the-sign rate's.
 It reads `runs.jsonl` only and writes nothing; it is not part of avsim.
 """
@@ -18,11 +18,11 @@ It reads `runs.jsonl` only and writes nothing; it is not part of avsim.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 from pathlib import Path
 
+from avsim.experiments.results_file import read_records
 from avsim.metrics import STOPPED_BEFORE_SIGN, record_rested_beyond_gate
 from avsim.stats import rate_with_interval
 
@@ -37,11 +37,15 @@ def newest_runs_file(folder: Path) -> Path:
     return batches[-1]
 
 
+# The record's outcome -> the table's column; the stops split further by where the car came to rest (kind_of).
+KIND_OF_OUTCOME = {"never_braked": "never braked", "ran_past_sign": "too late", "timed_out_before_sign": "timed out"}
+
+
 def kind_of(result: dict) -> str:
-    """One run's result record -> "for the sign", "something else first", "never braked" or "too late"."""
+    """One run's result record -> "for the sign", "something else first", or its outcome's KIND_OF_OUTCOME."""
     if result["outcome"] in STOPPED_BEFORE_SIGN:
         return "something else first" if record_rested_beyond_gate(result) else "for the sign"
-    return "never braked" if result.get("dist_at_brake_m") is None else "too late"
+    return KIND_OF_OUTCOME[result["outcome"]]
 
 
 def span(values: list[float]) -> str:
@@ -53,7 +57,7 @@ def describe(results: list[dict]) -> str:
     """One line: each kind's count (the first with its Wilson interval) and where its runs began braking, then
     the median onset over every run that braked."""
     kinds = {kind: [r for r in results if kind_of(r) == kind]
-             for kind in ("for the sign", "something else first", "never braked", "too late")}
+             for kind in ("for the sign", "something else first", *KIND_OF_OUTCOME.values())}
     parts = []
     for kind, runs in kinds.items():
         count = rate_with_interval(len(runs), len(results)) if kind == "for the sign" else str(len(runs))
@@ -70,7 +74,7 @@ def main() -> int:
     parser.add_argument("folders", type=Path, nargs="+", help="`avsim reproduce --out` folders (or runs.jsonl files)")
     args = parser.parse_args()
     for folder in args.folders:
-        lines = [json.loads(line) for line in newest_runs_file(folder).read_text().splitlines() if line.strip()]
+        lines = read_records(newest_runs_file(folder))
         finished = [line for line in lines if line["status"] == "ok" and line["result"].get("stop_required", True)]
         print(f"{folder}: {len(finished)} finished runs that needed a stop, {len(lines) - len(finished)} others")
         for experiment in sorted({line["experiment"] for line in finished}):
