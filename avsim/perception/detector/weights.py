@@ -13,6 +13,7 @@ loads with `torch.load(weights_only=True)` (no code runs on load):
 
 from __future__ import annotations
 
+import itertools
 import os
 from pathlib import Path
 from typing import Any
@@ -152,8 +153,10 @@ def training_sentence(meta: dict[str, Any]) -> str:
     if not places or any(not isinstance(place, dict) for place in places):
         return (sentence + "; where its arithmetic ran (CPU, kernels, threads) is not recorded, and the same data and "
                 "seed give these weights only on the same arithmetic.")
-    distinct = [place for i, place in enumerate(places) if place not in places[:i]]
-    return sentence + ", on " + ", then on ".join(_where(place) for place in distinct) + "."
+    # One clause per stretch of epochs on the same arithmetic, in order (a training resumed elsewhere and back
+    # ran on three).
+    stretches = [place for place, _ in itertools.groupby(places)]
+    return sentence + ", on " + ", then on ".join(_where(place) for place in stretches) + "."
 
 
 def export_weights(checkpoint_path: str | Path, out_path: str | Path) -> Path:

@@ -141,6 +141,9 @@ def test_the_training_sentence_names_where_each_epoch_ran():
     resumed = {**meta, "history": [{"epoch": 1, "ran_on": HERE}, {"epoch": 2, "ran_on": {**HERE, "torch_threads": 1}}]}
     assert training_sentence(resumed).endswith("2 threads), then on AMD EPYC 9B14 (AVX512 kernels, oneDNN cap unset, "
                                                "1 thread).")
+    back = {**meta, "history": [*resumed["history"], {"epoch": 3, "ran_on": HERE}]}
+    assert training_sentence(back).endswith("1 thread), then on AMD EPYC 9B14 (AVX512 kernels, oneDNN cap unset, "
+                                            "2 threads).")
 
 
 @pytest.mark.parametrize("history", [None, [], [{"epoch": 1}], [{"epoch": 1, "ran_on": HERE}, {"epoch": 2}], "bad", [3]])
