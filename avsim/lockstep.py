@@ -8,7 +8,9 @@ Each tick, every car that is still running renders its cameras (`FramePerception
 the frames of all cars that share a perception config go through their shared detector at once
 (`detect_many`); then each car decides, actuates and steps its physics (`ClosedLoop.step_with`).
 A car whose run ends drops out; the others go on. Perceptions that do not run a network on
-pixels (the oracle, none) perceive car by car, as in a lone run.
+pixels (the oracle, none) perceive car by car, as in a lone run. Cars that would see the same
+frames (runs that differ only in their policy, while they still drive alike) have them rendered
+and detected once (`avsim.frame_sharing`).
 
 A run's result does not depend on its batch: the detectors' `detect_many` gives each frame what
 a lone `detect` gives it, bit for bit (see `avsim.perception.detector.infer` for why under bf16
@@ -28,6 +30,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from avsim.config import SimConfig
+from avsim.frame_sharing import KeptFramePools, sight_key
 from avsim.loop import ClosedLoop
 from avsim.perception.base import Detection
 from avsim.perception.factory import FrameDetectorCache
@@ -50,25 +53,28 @@ class _Car:
         self.wall_s = 0.0
 
 
-def run_lockstep(configs: Sequence[SimConfig], *, recordings: Sequence[Mapping[str, Any]] | None = None
-                 ) -> list[RunOutput | Exception]:
+def run_lockstep(configs: Sequence[SimConfig], *, recordings: Sequence[Mapping[str, Any]] | None = None,
+                 share_frames: bool = True) -> list[RunOutput | Exception]:
     """Run every config to the end in lock-step; returns, per config, its `RunOutput` or the
     exception that ended it (a run that fails does not stop the others).
 
     recordings: per config, `run_recorded`'s recording arguments (rrd_path, mp4_path, mcap_path,
     mcap_images, keep_if), or {} for none.
+    share_frames: render and detect once the frames several cars would see (`avsim.frame_sharing`);
+    off, every car renders its own (the same results, more time: for measuring what sharing saves).
     """
     recordings = list(recordings) if recordings is not None else [{}] * len(configs)
     if len(recordings) != len(configs):
         raise ValueError(f"need one recording (or {{}}) per config: {len(recordings)} for {len(configs)} configs")
     detectors = FrameDetectorCache()
+    pools = KeptFramePools() if share_frames else None
     outputs: list[RunOutput | Exception | None] = [None] * len(configs)
     cars: dict[int, _Car] = {}
     try:
         for index, config in enumerate(configs):
             started = time.perf_counter()
             try:
-                car = _start(config, detectors, recordings[index])
+                car = _start(config, detectors, recordings[index], pools)
             except Exception as exc:  # noqa: BLE001 - this run failed; the batch goes on
                 raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
                 outputs[index] = exc
@@ -80,7 +86,7 @@ def run_lockstep(configs: Sequence[SimConfig], *, recordings: Sequence[Mapping[s
             running = {index: car for index, car in cars.items() if not car.loop.done()}
             for index in [i for i in cars if i not in running]:
                 outputs[index] = _finish(cars.pop(index))
-            failed = _tick(running)
+            failed = _tick(running, share_frames)
             share_s = (time.perf_counter() - started) / max(1, len(running))
             for index, car in running.items():
                 car.wall_s += share_s
@@ -93,9 +99,12 @@ def run_lockstep(configs: Sequence[SimConfig], *, recordings: Sequence[Mapping[s
     return [output for output in outputs if output is not None]
 
 
-def _start(config: SimConfig, detectors: FrameDetectorCache, recording: Mapping[str, Any]) -> _Car:
+def _start(config: SimConfig, detectors: FrameDetectorCache, recording: Mapping[str, Any],
+           pools: KeptFramePools | None) -> _Car:
     check_meaningful(config)  # as `run_recorded` does: a scenario that cannot mean what it says never runs
     loop = ClosedLoop(config, detectors)
+    if pools is not None:
+        pools.join(loop)  # before the recorders open and render the first sensing state
     stack = contextlib.ExitStack()
     try:
         return _Car(loop, stack, recording)
@@ -105,23 +114,39 @@ def _start(config: SimConfig, detectors: FrameDetectorCache, recording: Mapping[
         raise
 
 
-def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]]) -> list[dict[str, list[Detection]] | Exception]:
+def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]], share_frames: bool = True
+                      ) -> list[dict[str, list[Detection]] | Exception]:
     """Perceive each (loop, cameras) at its current state, as `loop.perceive(cameras)` would, with
-    one network call per shared detector over all of their frames. Returns, per car, its
-    detections by camera, or the exception its rendering raised."""
+    one network call per shared detector over all of their frames, and each set of frames that
+    several cars would see rendered and detected once (`avsim.frame_sharing`; unless `share_frames`
+    is off). Returns, per car, its detections by camera, or the exception its rendering raised."""
     out: list[dict[str, list[Detection]] | Exception] = []
     groups: dict[int, list[tuple[int, FrameRequest]]] = {}
+    leaders: dict[bytes, int] = {}  # sight key -> the car that renders and detects those frames
+    followers: dict[int, int] = {}  # car -> its leader, whose detections it takes
+    rendered: list[int] = []  # the cars whose own frames are rendered and detected
     for index, (loop, cameras) in enumerate(cars):
         try:
             if isinstance(loop.perception, FramePerception):
-                for request in loop.perception.frame_requests(loop.rig, loop.data, cameras):
-                    groups.setdefault(id(loop.perception.detector), []).append((index, request))
+                key = sight_key(loop, cameras) if share_frames else None
+                leader = leaders.get(key) if key is not None else None
+                if leader is not None:
+                    if loop.perception.noise is not None:  # the state its own draw would leave
+                        loop.perception.noise.follow(cars[leader][0].perception.noise)
+                    followers[index] = leader
+                else:
+                    for request in loop.perception.frame_requests(loop.rig, loop.data, cameras):
+                        groups.setdefault(id(loop.perception.detector), []).append((index, request))
+                    rendered.append(index)
+                    if key is not None:
+                        leaders[key] = index
                 out.append({camera: [] for camera in cameras})
             else:
                 out.append(loop.perceive(cameras))
         except Exception as exc:  # noqa: BLE001 - this car's failure, not the batch's
             raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
             out.append(exc)
+    found_by: dict[tuple[int, str], list[Detection]] = {}  # (leader, camera) -> what the network found
     for group in groups.values():
         group = [(index, request) for index, request in group if not isinstance(out[index], Exception)]
         if not group:
@@ -129,15 +154,19 @@ def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]]) -> lis
         perception = cars[group[0][0]][0].perception
         found = detect_many(perception.detector, [request for _, request in group])
         for (index, (_, camera, _)), frame_detections in zip(group, found):
-            out[index][camera] = cars[index][0].perception.keep(frame_detections)
+            found_by[index, camera] = frame_detections
+    for index in [*rendered, *followers]:
+        loop, cameras = cars[index]
+        source = followers.get(index, index)
+        out[index] = {camera: loop.perception.keep(found_by[source, camera]) for camera in cameras}
     return out
 
 
-def _tick(cars: dict[int, _Car]) -> dict[int, Exception]:
+def _tick(cars: dict[int, _Car], share_frames: bool) -> dict[int, Exception]:
     """One control step of every car: render all, one network call per shared detector, then each
     car's decision, actuation and physics. Returns the cars whose run raised, with the exception."""
     indices = list(cars)
-    perceived = perceive_together([(cars[i].loop, cars[i].loop.policy.cameras) for i in indices])
+    perceived = perceive_together([(cars[i].loop, cars[i].loop.policy.cameras) for i in indices], share_frames)
     failed: dict[int, Exception] = {}
     for index, detections in zip(indices, perceived):
         if isinstance(detections, Exception):

@@ -84,7 +84,20 @@ def test_batch_records_equal_lone_records_apart_from_wall_time():
     (10, 2, 8, [5, 5]), (16, 2, 8, [8, 8]), (17, 2, 8, [8, 8, 1]), (3, 1, 1, [1, 1, 1]), (3, 4, 8, [1, 1, 1]),
 ])
 def test_groups_cover_every_run_once_and_feed_every_worker(count, workers, batch, sizes):
-    specs = [f"spec{i}" for i in range(count)]  # stand-ins: grouping never looks inside a spec
+    specs = [short_run_spec("alone", seed) for seed in range(count)]  # no two of them siblings
     groups = list(lockstep_groups(iter(specs), group_size(count, workers, batch)))
     assert [len(g) for g in groups] == sizes
     assert [pair for g in groups for pair in g] == list(enumerate(specs))
+
+
+def test_siblings_are_grouped_together_in_the_order_their_families_first_appear():
+    # As a leaderboard's plan lists them: policy by policy, and in each the seeds.
+    policies, seeds = ("baseline", "adjusted", "side_camera"), (0, 1, 2, 3)
+    specs = [short_run_spec(policy, seed, policy={"name": policy}) for policy in policies for seed in seeds]
+    groups = list(lockstep_groups(iter(specs), 3))
+    assert [[spec.seed for _, spec in group] for group in groups] == [[seed] * 3 for seed in seeds]
+    assert all([spec.cell for _, spec in group] == list(policies) for group in groups)
+    assert sorted(pair[0] for group in groups for pair in group) == list(range(len(specs)))
+    # ... but only within a window of the plan: beyond it, the plan's own order
+    far_apart = list(lockstep_groups(iter(specs), 3, window=4))
+    assert [[spec.seed for _, spec in group] for group in far_apart] == [[0, 1, 2], [3], [0, 1, 2], [3], [0, 1, 2], [3]]

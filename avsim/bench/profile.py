@@ -101,6 +101,17 @@ def run_profile(quick: bool = False) -> None:
             per_core[(workers, batch)] = per_cpu_s
             print(f"    {workers:7d} {batch:5d} {wall_s:7.1f} {rate:28.2f} {per_cpu_s:16.2f} {sent / 1e3:10.0f} kB")
 
+    # Siblings: a table's policies on the same seeds, which share their frames while they drive alike.
+    policies = ("baseline", "adjusted", "side_camera", "combined")
+    siblings = [with_overrides(_config("town07", policy, "detector", "auto"), {"scenario": {"seed": seed}})
+                for seed in range(runs // len(policies)) for policy in policies]
+    print(f"\n  batch of {len(siblings)} sibling runs (town07, {', '.join(policies)}, detector {auto_arithmetic()}, "
+          f"seeds 0-{runs // len(policies) - 1}: siblings share their frames while they drive alike), 1 worker:")
+    for batch in (1, len(siblings)):
+        rate, per_cpu_s, wall_s, sent = _batch_rate(siblings, 1, batch)
+        per_core[("siblings", batch)] = per_cpu_s
+        print(f"    {1:7d} {batch:5d} {wall_s:7.1f} {rate:28.2f} {per_cpu_s:16.2f} {sent / 1e3:10.0f} kB")
+
     print("\n  targets (issue 25) and what this printout measured:")
     for name, target in ONE_RUN_TARGETS.items():
         measured = ", ".join(f"{precision} {ratios[f'{name}, {precision}']:.2f}x" for precision in arithmetics
@@ -110,4 +121,6 @@ def run_profile(quick: bool = False) -> None:
     if "coco" in ratios:
         print(f"    coco closed loop, one camera           >= 1.5x per core: {ratios['coco']:.2f}x per CPU second, alone")
     gain = per_core[(1, runs)] / per_core[(1, 1)]
-    print(f"    batching, sim s per CPU second at N={runs} over N=1 (1 worker) >= 1.5: {gain:.2f}")
+    sibling_gain = per_core[("siblings", len(siblings))] / per_core[("siblings", 1)]
+    print(f"    batching, sim s per CPU second at N={runs} over N=1 (1 worker) >= 1.5: {gain:.2f} for runs of other seeds, "
+          f"{sibling_gain:.2f} for sibling runs")

@@ -20,11 +20,15 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from avsim.experiments.run_task import RunSpec
+from avsim.frame_sharing import sibling_key
 
 Item = TypeVar("Item")
 Handle = TypeVar("Handle", bound=Hashable)
 # A lock-step group: its specs, each with its index in the plan (records are put back in plan order).
 Group = list[tuple[int, RunSpec]]
+# How many specs `lockstep_groups` builds at a time to find each run's siblings among: a leaderboard's
+# defences of one place and seed lie about 54 specs apart in its plan, so 8 of them within 432.
+SIBLING_WINDOW = 1024
 
 
 @dataclass(frozen=True)
@@ -63,12 +67,20 @@ def group_size(total: int | None, workers: int | None, batch: int) -> int:
     return max(1, min(batch, -(-total // max(1, workers))))
 
 
-def lockstep_groups(specs: Iterable[RunSpec], size: int) -> Iterator[Group]:
-    """`specs` cut into consecutive groups of `size` (the last may be shorter), each spec with its
-    index; built only as each group is asked for."""
+def lockstep_groups(specs: Iterable[RunSpec], size: int, window: int = SIBLING_WINDOW) -> Iterator[Group]:
+    """`specs` cut into groups of `size` (the last may be shorter), each spec with its index; built
+    only as each window of `window` specs is asked for. Within a window, siblings (runs that differ
+    only in their policy, `avsim.frame_sharing.sibling_key`) are put next to each other, in the
+    order each family first appears, so that a group's cars share their frames for as long as they
+    drive alike; a run's result is the same in any group."""
     numbered = enumerate(specs)
-    while group := list(itertools.islice(numbered, size)):
-        yield group
+    while chunk := list(itertools.islice(numbered, max(size, window))):
+        families: dict[bytes, Group] = {}
+        for index, spec in chunk:
+            families.setdefault(sibling_key(spec.config), []).append((index, spec))
+        ordered = [item for family in families.values() for item in family]
+        for start in range(0, len(ordered), size):
+            yield ordered[start:start + size]
 
 
 def specs_of(group: Group) -> list[RunSpec]:

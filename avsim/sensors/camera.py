@@ -98,12 +98,13 @@ class CameraPose:
         return float(-(self.rotation[:, 2] @ (np.asarray(point_world_m) - self.position_m)))
 
 
-def _render_key(model: mujoco.MjModel, data: mujoco.MjData) -> bytes:
-    """What a frame is drawn from: the time, every geom's, camera's and light's pose, and every
-    geom's group and colour (which hide or tint it)."""
+def render_key(model: mujoco.MjModel, data: mujoco.MjData) -> bytes:
+    """What a frame is drawn from: the time, the joint and mocap positions, every geom's, camera's and
+    light's pose, and every geom's group and colour (which hide or tint it). The rest of the model
+    does not change during a run."""
     return b"".join(np.ascontiguousarray(a).tobytes() for a in (
-        np.float64(data.time), data.geom_xpos, data.geom_xmat, data.cam_xpos, data.cam_xmat, data.light_xpos, data.light_xdir,
-        model.geom_group, model.geom_rgba))
+        np.float64(data.time), data.qpos, data.mocap_pos, data.mocap_quat, data.geom_xpos, data.geom_xmat,
+        data.cam_xpos, data.cam_xmat, data.light_xpos, data.light_xdir, model.geom_group, model.geom_rgba))
 
 
 class CameraRig:
@@ -122,6 +123,13 @@ class CameraRig:
         self.reuse_last_frame = False  # see `render_rgb`
         self._last_rgb: dict[str, tuple[bytes, np.ndarray]] = {}  # camera -> (state, frame): `render_rgb`
         self._photo = PhotoModel.from_config(config)
+
+    def pool_kept_frames(self, other: CameraRig) -> None:
+        """Keep last frames (`reuse_last_frame`) in one store with `other`. For the rigs of sibling runs
+        (`avsim.frame_sharing`), whose models draw the same frame from the same state: each kept frame
+        is keyed by the state it was drawn from, so a rig finds another's frame only where it would
+        draw that frame itself (a recorder's render of a state its sibling's recorder drew)."""
+        self._last_rgb = other._last_rgb
 
     @property
     def config(self) -> CameraConfig:
@@ -161,7 +169,7 @@ class CameraRig:
         """
         width, height = self._config.width_px, self._config.height_px
         padded = self._photo.padded_region(region_px, width, height)
-        key = _render_key(self._model, data) if self.reuse_last_frame else None
+        key = render_key(self._model, data) if self.reuse_last_frame else None
         last = self._last_rgb.get(camera)
         if key is not None and last is not None and last[0] == key:
             frame = last[1].copy()

@@ -8,6 +8,8 @@ run does not change the noise its perception sees (nor does the recording show t
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 # Second word of the noise generator's seed: independent of the start jitter (seeded by
@@ -30,6 +32,19 @@ class SensorNoise:
         self.std_levels = std_levels
         self.rng = np.random.default_rng((seed, SENSOR_NOISE_STREAM))
         self._bank = np.empty(0, np.int16)
+        self._bank_digest = b""
+
+    def state_key(self) -> bytes:
+        """What the next frame's noise is drawn from: the level, the generator's state and the bank's
+        contents. Two instances with equal keys draw the same noise for a frame of the same size, and
+        are left in the same state (`avsim.frame_sharing`)."""
+        return b"/".join((repr(self.std_levels).encode(), repr(self.rng.bit_generator.state).encode(), self._bank_digest))
+
+    def follow(self, other: SensorNoise) -> None:
+        """Take `other`'s state: for an instance whose `state_key` equalled `other`'s before `other`
+        drew a frame's noise, in place of drawing the same noise itself."""
+        self.rng.bit_generator.state = other.rng.bit_generator.state
+        self._bank, self._bank_digest = other._bank, other._bank_digest  # the bank is never written in place
 
     def apply(self, rgb: np.ndarray, region_px: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """A noisy copy of `rgb` (the input itself when the std is 0), clipped to [0, 255].
@@ -43,6 +58,7 @@ class SensorNoise:
         size = rgb.size
         if self._bank.size < 2 * size:
             self._bank = np.rint(self.rng.standard_normal(2 * size) * self.std_levels).astype(np.int16)
+            self._bank_digest = hashlib.blake2b(self._bank.tobytes(), digest_size=16).digest()
         offset = int(self.rng.integers(0, self._bank.size - size + 1))
         window = self._bank[offset:offset + size].reshape(rgb.shape)
         if region_px is None:

@@ -9,7 +9,7 @@ import pytest
 
 from avsim import cli
 from avsim.experiments import batch
-from avsim.experiments.plan import Counted, Plan, count_of, in_flight, lockstep_groups
+from avsim.experiments.plan import SIBLING_WINDOW, Counted, Plan, count_of, in_flight, lockstep_groups
 from avsim.experiments.results_file import read_records
 from avsim.experiments.run_task import RunSpec, failed_record
 from helpers import short_run_spec
@@ -82,9 +82,9 @@ def test_a_plan_of_100k_runs_starts_its_first_run_after_building_only_a_few_spec
     assert len(err.strip().splitlines()) == 1 and "finished run" in err, err
     (path,) = (tmp_path / "out").glob(results)
     assert len(read_records(path)) == BATCH == groups[0]
-    # Only the groups drawn so far were built: the first and the one queued behind it, each spec at
-    # most twice (its copy with recording paths, `--rrd failed`).
-    assert len(built) <= 2 * 2 * BATCH, f"{len(built)} specs built for a plan of 10^5+ runs"
+    # Only the specs among which the first groups' runs look for their siblings were built (one window,
+    # `SIBLING_WINDOW`), each at most twice (its copy with recording paths, `--rrd failed`).
+    assert len(built) <= 2 * SIBLING_WINDOW, f"{len(built)} specs built for a plan of 10^5+ runs"
 
 
 def test_a_plan_is_built_lazily_and_again_on_each_pass():
@@ -98,8 +98,8 @@ def test_a_plan_is_built_lazily_and_again_on_each_pass():
     plan = Plan(5, specs)
     assert made == [] and count_of(plan) == 5 and count_of([1, 2]) == 2 and count_of(iter([1])) is None
     numbered = Counted(plan)
-    first = next(lockstep_groups(numbered, 2))
-    assert [index for index, _ in first] == [0, 1] and made == [0, 1] and not numbered.exhausted
+    first = next(lockstep_groups(numbered, 2, window=3))  # siblings are looked for 3 specs at a time
+    assert [index for index, _ in first] == [0, 1] and made == [0, 1, 2] and not numbered.exhausted
     assert [spec.seed for spec in plan] == [0, 1, 2, 3, 4]  # a fresh pass, in the same order
 
 

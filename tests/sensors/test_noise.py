@@ -18,6 +18,18 @@ def test_same_seed_same_noise_and_other_seeds_other_noise():
     assert not np.array_equal(first, a.apply(FRAME))  # a fresh pattern every frame
 
 
+def test_a_noise_that_follows_another_is_left_as_its_own_draw_would_leave_it():
+    leader, follower, own = SensorNoise(2.0, 0), SensorNoise(2.0, 0), SensorNoise(2.0, 0)
+    assert leader.state_key() == follower.state_key() == own.state_key()
+    leader.apply(FRAME)
+    own.apply(FRAME)
+    assert leader.state_key() != follower.state_key()
+    follower.follow(leader)
+    assert follower.state_key() == own.state_key() == leader.state_key()
+    assert np.array_equal(follower.apply(FRAME), own.apply(FRAME))  # and it draws on as its own draws would
+    assert SensorNoise(2.0, 1).state_key() != SensorNoise(2.0, 0).state_key() != SensorNoise(3.0, 0).state_key()
+
+
 def test_noise_has_the_configured_spread_and_keeps_the_frame_8_bit():
     noisy = SensorNoise(5.0, 0).apply(FRAME)
     assert noisy.dtype == np.uint8 and noisy.shape == FRAME.shape
