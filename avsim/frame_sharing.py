@@ -17,7 +17,9 @@ A car's sight key is everything its perception's output at a control tick is a f
 
 - its config without the policy section: the scene and its lighting, the cameras and their
   photographic model, the perception and its network, the sensor noise's seed and level, the
-  vehicle (the policy alone is what sharing is for; any other difference keeps the cars apart);
+  vehicle (the policy alone is what sharing is for; any other difference keeps the cars apart),
+  except an ensemble's fusion rule: ensembles of the same networks share what each network finds
+  and fuse it each by its own rule (`FUSION_KEYS`);
 - the state the frames are drawn from: the time, the joint positions, every geom's, camera's and
   light's pose, and every geom's group and colour (`sensors.camera.render_key`, what a renderer
   reads from the model and data; the rest of the model does not change during a run);
@@ -39,17 +41,25 @@ import weakref
 from typing import TYPE_CHECKING
 
 from avsim.perception.frame import FramePerception
-from avsim.sensors.camera import render_key
+from avsim.sensors.camera import CameraRig, render_key
 
 if TYPE_CHECKING:  # annotations only: avsim.loop imports nothing from here
     from avsim.config import SimConfig
     from avsim.loop import ClosedLoop
 
 
+# The perception keys an ensemble reads only after its networks have run, to fuse their boxes: ensembles
+# that differ only in them share the networks' output (`EnsembleDetector.detect_members`), each fusing it
+# by its own rule. Not behind a purifier, which takes the ensemble's fused detections whole.
+FUSION_KEYS = ("ensemble_fusion", "ensemble_k")
+
+
 def sibling_key(config: SimConfig) -> bytes:
-    """A digest of `config` without its policy section: runs with equal keys see the same frames
-    until their cars first move differently (the module docstring)."""
+    """A digest of `config` without its policy section (and an ensemble's `FUSION_KEYS`): runs with
+    equal keys see the same frames until their cars first move differently (the module docstring)."""
     sections = {name: value for name, value in config.to_dict().items() if name != "policy"}
+    if config.perception.kind == "ensemble" and config.perception.purify == "none":
+        sections["perception"] = {key: value for key, value in sections["perception"].items() if key not in FUSION_KEYS}
     return hashlib.blake2b(json.dumps(sections, sort_keys=True, default=repr).encode(), digest_size=16).digest()
 
 
@@ -64,16 +74,20 @@ class KeptFramePools:
     since they render the first sensing state when they do."""
 
     def __init__(self) -> None:
-        self._first_of: dict[bytes, ClosedLoop] = {}
+        self._first_rig_of: dict[bytes, CameraRig] = {}  # sibling key -> the rig whose store the family shares
 
     def join(self, loop: ClosedLoop) -> None:
         """Pool `loop`'s rig with the first joined sibling's, if any."""
-        first = self._first_of.setdefault(sibling_key(loop.config), loop)
-        if first is not loop:
-            loop.rig.pool_kept_frames(first.rig)
+        first = self._first_rig_of.setdefault(sibling_key(loop.config), loop.rig)
+        if first is not loop.rig:
+            loop.rig.pool_kept_frames(first)
 
 
-def sight_key(loop: ClosedLoop, cameras: tuple[str, ...]) -> bytes | None:
+# (sibling key, cameras, sensor noise state, render state): `sight_key`.
+SightKey = tuple[bytes, tuple[str, ...], bytes, bytes]
+
+
+def sight_key(loop: ClosedLoop, cameras: tuple[str, ...]) -> SightKey | None:
     """What `loop`'s perception of `cameras` at its current state is a function of (the module
     docstring); None where the perception renders no frames."""
     perception = loop.perception
@@ -83,4 +97,4 @@ def sight_key(loop: ClosedLoop, cameras: tuple[str, ...]) -> bytes | None:
     if config_key is None:
         config_key = _sibling_keys[loop] = sibling_key(loop.config)
     noise = perception.noise.state_key() if perception.noise is not None else b"no noise"
-    return b"|".join((config_key, ",".join(cameras).encode(), noise, render_key(loop.model, loop.data)))
+    return config_key, tuple(cameras), noise, render_key(loop.model, loop.data)

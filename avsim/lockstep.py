@@ -30,11 +30,11 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from avsim.config import SimConfig
-from avsim.frame_sharing import KeptFramePools, sight_key
+from avsim.frame_sharing import KeptFramePools, SightKey, sight_key
 from avsim.loop import ClosedLoop
 from avsim.perception.base import Detection
 from avsim.perception.factory import FrameDetectorCache
-from avsim.perception.frame import FramePerception, FrameRequest, detect_many
+from avsim.perception.frame import FramePerception, FrameRequest, detect_parts_many, detections_from_parts
 from avsim.metrics import RunResult
 from avsim.plausibility import check_meaningful
 from avsim.runner import RunOutput, finish_recorders, open_recorders, step_hook
@@ -122,7 +122,7 @@ def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]], share_
     is off). Returns, per car, its detections by camera, or the exception its rendering raised."""
     out: list[dict[str, list[Detection]] | Exception] = []
     groups: dict[int, list[tuple[int, FrameRequest]]] = {}
-    leaders: dict[bytes, int] = {}  # sight key -> the car that renders and detects those frames
+    leaders: dict[SightKey, int] = {}  # sight key -> the car that renders and detects those frames
     followers: dict[int, int] = {}  # car -> its leader, whose detections it takes
     rendered: list[int] = []  # the cars whose own frames are rendered and detected
     for index, (loop, cameras) in enumerate(cars):
@@ -146,19 +146,20 @@ def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]], share_
         except Exception as exc:  # noqa: BLE001 - this car's failure, not the batch's
             raise_if_interrupted(exc)  # a Ctrl-C a C call wrapped stops the batch
             out.append(exc)
-    found_by: dict[tuple[int, str], list[Detection]] = {}  # (leader, camera) -> what the network found
+    found_by: dict[tuple[int, str], Any] = {}  # (leader, camera) -> what the networks found (`detect_parts_many`)
     for group in groups.values():
         group = [(index, request) for index, request in group if not isinstance(out[index], Exception)]
         if not group:
             continue
         perception = cars[group[0][0]][0].perception
-        found = detect_many(perception.detector, [request for _, request in group])
-        for (index, (_, camera, _)), frame_detections in zip(group, found):
-            found_by[index, camera] = frame_detections
+        found = detect_parts_many(perception.detector, [request for _, request in group])
+        for (index, (_, camera, _)), frame_parts in zip(group, found):
+            found_by[index, camera] = frame_parts
     for index in [*rendered, *followers]:
         loop, cameras = cars[index]
         source = followers.get(index, index)
-        out[index] = {camera: loop.perception.keep(found_by[source, camera]) for camera in cameras}
+        out[index] = {camera: loop.perception.keep(detections_from_parts(loop.perception.detector, found_by[source, camera]))
+                      for camera in cameras}
     return out
 
 

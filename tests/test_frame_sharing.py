@@ -1,6 +1,10 @@
 """Cars of a lock-step batch that would see the same frames render and detect them once
 (`avsim.frame_sharing`), and every run's result stays what it is alone, bit for bit."""
 
+import dataclasses
+
+import pytest
+
 from avsim.frame_sharing import sibling_key, sight_key
 from avsim.lockstep import run_lockstep
 from avsim.loop import ClosedLoop
@@ -90,3 +94,21 @@ def test_recorded_siblings_draw_each_shared_frame_once_for_their_recordings_too(
     assert [o.result for o in shared] == alone
     # 21 sensing states (the 20 steps' and the last), each drawn once for both recordings and perceptions
     assert len(drawn) == 21 and all((tmp_path / f"{policy}.rrd").stat().st_size > 0 for policy in ("baseline", "adjusted"))
+
+
+@pytest.mark.slow
+def test_ensembles_that_differ_only_in_fusion_share_their_networks_and_fuse_each_by_its_own_rule(monkeypatch):
+    # Town10 standard from 75 m: the two networks disagree on some frames, so "or" and "and" brake at different points
+    configs = [make_config(scenario={**SHORT, "town": "town10"}, policy={"name": "baseline"}, loop={"max_time_s": 4.0},
+                           perception={"kind": "ensemble", "ensemble_fusion": fusion, "sensor_noise_std": 2.0})
+               for fusion in ("or", "and")]
+    assert sibling_key(configs[0]) == sibling_key(configs[1])
+    alone = [run_config(config)[0].to_json_dict() for config in configs]
+    rendered = _count_renders(monkeypatch)
+    shared = run_lockstep(configs)
+    assert [o.result.to_json_dict() for o in shared] == alone
+    assert alone[0]["dist_at_brake_m"] != alone[1]["dist_at_brake_m"]  # they parted
+    assert len(rendered) < sum(len(o.records) for o in shared)  # some frames were drawn and detected once for both
+    # a purifier takes the ensemble's fused boxes whole: then the fusion keeps them apart
+    purified = [dataclasses.replace(c, perception=dataclasses.replace(c.perception, purify="median")) for c in configs]
+    assert sibling_key(purified[0]) != sibling_key(purified[1])

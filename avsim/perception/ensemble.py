@@ -111,8 +111,17 @@ class EnsembleDetector:
         """Every member's detections in `image_rgb` (H, W, 3) uint8 RGB, each tagged with its source;
         fused by vote when `votes` is set, else all of them, most confident first.
         """
-        per_source = {name: [dataclasses.replace(d, source=name) for d in member.detect(image_rgb, camera, region_px=region_px)]
-                      for name, member in self.members.items()}
+        return self.fuse(self.detect_members(image_rgb, camera, region_px=region_px))
+
+    def detect_members(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None
+                       ) -> dict[str, list[Detection]]:
+        """Each member's detections in `image_rgb`, tagged with its name, before fusion: what ensembles of
+        the same members but another fusion find in the frame too (`avsim.frame_sharing`)."""
+        return {name: [dataclasses.replace(d, source=name) for d in member.detect(image_rgb, camera, region_px=region_px)]
+                for name, member in self.members.items()}
+
+    def fuse(self, per_source: Mapping[str, list[Detection]]) -> list[Detection]:
+        """`detect_members`' detections fused by this ensemble's rule (module docstring), most confident first."""
         if self.votes is not None:
             return fuse_votes(per_source, self.votes)
         return sorted((d for dets in per_source.values() for d in dets), key=lambda d: -d.confidence)

@@ -18,7 +18,7 @@ then `keep`, to run many cars' frames through one network call (`detect_many`).
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from typing import Protocol
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -34,8 +34,9 @@ Region = tuple[int, int, int, int]
 class FrameDetector(Protocol):
     """What a pixel perception's network offers. Optional, where the detector can do better than the
     defaults: `pixels_needed(region_px, width_px, height_px) -> Region | None` (the part of a frame it
-    reads; None: all of it) and `detect_many([(image_rgb, camera, region_px), ...]) -> [detections, ...]`
-    (each frame's detections exactly as `detect` gives them alone)."""
+    reads; None: all of it), `detect_many([(image_rgb, camera, region_px), ...]) -> [detections, ...]`
+    (each frame's detections exactly as `detect` gives them alone), and `detect_members` with `fuse` (an
+    ensemble: its networks' detections, then its own fusion of them; `detect_parts_many`)."""
 
     def detect(self, image_rgb: np.ndarray, camera: str, *, region_px: Region | None = None) -> list[Detection]:
         """Detections in `image_rgb` (H, W, 3) uint8 RGB, boxes in its pixels; with `region_px`
@@ -52,6 +53,21 @@ def detect_many(detector: FrameDetector, requests: list[FrameRequest]) -> list[l
     if hasattr(detector, "detect_many"):
         return detector.detect_many(requests)
     return [detector.detect(frame, camera, region_px=region) for frame, camera, region in requests]
+
+
+def detect_parts_many(detector: FrameDetector, requests: list[FrameRequest]) -> list[Any]:
+    """What the detector's networks find in each requested frame before anything that detectors sharing
+    those networks do differently (an ensemble's fusion: `detect_members`); `detections_from_parts`
+    turns each into the detector's detections. Otherwise the detections themselves (`detect_many`)."""
+    if hasattr(detector, "detect_members"):
+        return [detector.detect_members(frame, camera, region_px=region) for frame, camera, region in requests]
+    return detect_many(detector, requests)
+
+
+def detections_from_parts(detector: FrameDetector, parts: Any) -> list[Detection]:
+    """The detections `detector` gives a frame from `detect_parts_many`'s parts of it (its own or those of a
+    detector with the same networks): an ensemble fuses them by its own rule."""
+    return detector.fuse(parts) if hasattr(detector, "fuse") else parts
 
 
 class FramePerception(Perception):
