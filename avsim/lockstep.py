@@ -140,7 +140,7 @@ def perceive_together(cars: Sequence[tuple[ClosedLoop, tuple[str, ...]]], share_
                     rendered.append(index)
                     if key is not None:
                         leaders[key] = index
-                out.append({camera: [] for camera in cameras})
+                out.append({})  # its detections by camera, once the networks have run (below)
             else:
                 out.append(loop.perceive(cameras))
         except Exception as exc:  # noqa: BLE001 - this car's failure, not the batch's

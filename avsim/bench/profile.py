@@ -69,6 +69,14 @@ def _batch_rate(configs: list[SimConfig], workers: int, batch: int) -> tuple[flo
     return sim_s / wall_s / workers, sim_s / cpu_s, wall_s, len(pickle.dumps(records))
 
 
+def _print_batch_row(configs: list[SimConfig], workers: int, batch: int) -> float:
+    """Run `configs` as one local batch and print its row of the batch table; returns its simulated
+    seconds per CPU second."""
+    rate, per_cpu_s, wall_s, sent = _batch_rate(configs, workers, batch)
+    print(f"    {workers:7d} {batch:5d} {wall_s:7.1f} {rate:28.2f} {per_cpu_s:16.2f} {sent / 1e3:10.0f} kB")
+    return per_cpu_s
+
+
 def run_profile(quick: bool = False) -> None:
     """Print the stage profiles of single runs, then of a batch, then the targets."""
     print("avsim bench --profile: one run's time by stage (exclusive: a stage excludes those it calls), "
@@ -97,9 +105,7 @@ def run_profile(quick: bool = False) -> None:
     per_core: dict[tuple[int, int], float] = {}
     for workers in sorted({1, min(2, os.cpu_count() or 1)}):
         for batch in (1, runs):
-            rate, per_cpu_s, wall_s, sent = _batch_rate(configs, workers, batch)
-            per_core[(workers, batch)] = per_cpu_s
-            print(f"    {workers:7d} {batch:5d} {wall_s:7.1f} {rate:28.2f} {per_cpu_s:16.2f} {sent / 1e3:10.0f} kB")
+            per_core[(workers, batch)] = _print_batch_row(configs, workers, batch)
 
     # Siblings: a table's policies on the same seeds, which share their frames while they drive alike.
     policies = ("baseline", "adjusted", "side_camera", "combined")
@@ -108,9 +114,7 @@ def run_profile(quick: bool = False) -> None:
     print(f"\n  batch of {len(siblings)} sibling runs (town07, {', '.join(policies)}, detector {auto_arithmetic()}, "
           f"seeds 0-{runs // len(policies) - 1}: siblings share their frames while they drive alike), 1 worker:")
     for batch in (1, len(siblings)):
-        rate, per_cpu_s, wall_s, sent = _batch_rate(siblings, 1, batch)
-        per_core[("siblings", batch)] = per_cpu_s
-        print(f"    {1:7d} {batch:5d} {wall_s:7.1f} {rate:28.2f} {per_cpu_s:16.2f} {sent / 1e3:10.0f} kB")
+        per_core[("siblings", batch)] = _print_batch_row(siblings, 1, batch)
 
     print("\n  targets (issue 25) and what this printout measured:")
     for name, target in ONE_RUN_TARGETS.items():
