@@ -1,6 +1,10 @@
 """The offscreen renderer: each one draws into a framebuffer of its own size, and a region read back
 alone is rasterised alone, with the whole frame's pixels."""
 
+import os
+import subprocess
+import sys
+
 import mujoco
 import numpy as np
 import pytest
@@ -11,7 +15,7 @@ from avsim.sensors import gl
 from avsim.sensors.gl import OffscreenRenderer, check_offscreen_rendering, check_texture_anisotropy
 from avsim.vehicle.physics import FRONT_BUMPER_X_M
 from avsim.world.signs import set_texture_data
-from helpers import make_config
+from helpers import PROCESS_TIMEOUT_S, make_config
 
 # A red box filling the view of a camera looking down the x axis, before a grey plane.
 SCENE = """
@@ -115,6 +119,43 @@ def test_a_reflective_material_keeps_the_stencil_buffer_for_mujoco_and_draws_the
         assert np.array_equal(region, frame[200:480, 100:400])
     finally:
         renderer.close()
+
+
+# Renders a few frames and prints their digest; run once per llvmpipe thread count, which Mesa reads when
+# the process's first GL context starts.
+_FRAMES_DIGEST = """
+import hashlib, mujoco
+from avsim.config import SimConfig, with_overrides
+from avsim.loop import ClosedLoop
+from avsim.sensors.gl import OffscreenRenderer
+from avsim.vehicle.physics import FRONT_BUMPER_X_M
+digest = hashlib.sha256()
+for town in ("town07", "town10"):
+    loop = ClosedLoop(with_overrides(SimConfig(), {"scenario": {"town": town}, "perception": {"kind": "oracle"}}))
+    renderer = OffscreenRenderer(loop.model, 640, 480, segmentation=False)
+    for dist_m in (60.0, 15.0):
+        loop.vehicle.place(loop.scene.stop_line_x_m - dist_m - FRONT_BUMPER_X_M, loop.scene.layout.lane_center_y_m, 0.0, 0.0)
+        mujoco.mj_forward(loop.model, loop.data)
+        for camera in ("car/front", "car/side"):
+            camera_id = loop.model.camera(camera).id
+            digest.update(renderer.render(loop.data, camera_id, mujoco.MjvOption()).tobytes())
+            digest.update(renderer.render(loop.data, camera_id, mujoco.MjvOption(), (288, 0, 640, 256)).tobytes())
+    renderer.close()
+    loop.close()
+print(digest.hexdigest())
+"""
+
+
+def test_the_rasteriser_thread_count_changes_no_pixel():
+    # A batch worker on one core's share rasterises in its own thread (LP_NUM_THREADS=0, `run_task.worker_env`);
+    # a lone run uses a thread per core. Every frame must be the same either way.
+    digests = {}
+    for threads in ("0", "1", "2"):
+        env = {**os.environ, "LP_NUM_THREADS": threads, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+        done = subprocess.run([sys.executable, "-c", _FRAMES_DIGEST], env=env, capture_output=True, text=True,
+                              timeout=PROCESS_TIMEOUT_S, check=True)
+        digests[threads] = done.stdout.strip()
+    assert len(digests["0"]) == 64 and len(set(digests.values())) == 1, digests
 
 
 def _no_egl(*args, **kwargs):
