@@ -185,8 +185,9 @@ def worker_env(workers: int) -> dict[str, str]:
     with one such renderer per worker the workers' threads fight over the cores. Each worker
     gets cores // workers threads instead. A worker whose share is one core or less rasterises
     in its own thread (0): a single rasteriser thread only takes each frame over while the
-    worker waits for it, and the hand-over cost about 10 % of a Town07 run's CPU time
-    (docs/performance.md). The thread count does not change a pixel: the image is cut into
+    worker waits for it. Alone on two cores that hand-over cost a Town07 run about 10 % of its
+    CPU time; two workers on two cores measured no faster either way (docs/performance.md).
+    The thread count does not change a pixel: the image is cut into
     tiles that each thread draws the same way (tests/sensors/test_gl.py). A user's own
     LP_NUM_THREADS wins.
     """
