@@ -3,9 +3,8 @@ and issue 25's speed targets beside what was measured.
 
 Prints measured figures only; nothing asserts. A run's speed is given in wall time (simulated
 seconds per wall second: real time) and in this process's CPU time (simulated seconds per CPU
-second), which other work on the machine disturbs far less; on a quiet machine with the renderer in
-the run's own thread (LP_NUM_THREADS=0, the command's default and what each of two workers gets on two
-cores) the two agree. The targets
+second), which other work on the machine disturbs far less; on a quiet machine with one renderer
+thread (LP_NUM_THREADS=1, what each of two workers gets on two cores) the two agree. The targets
 are compared with the CPU figure. Compare ratios within one printout, not with another machine's.
 """
 
@@ -81,7 +80,7 @@ def _print_batch_row(configs: list[SimConfig], workers: int, batch: int) -> floa
 def run_profile(quick: bool = False) -> None:
     """Print the stage profiles of single runs, then of a batch, then the targets."""
     print("avsim bench --profile: one run's time by stage (exclusive: a stage excludes those it calls), "
-          f"then a batch's; 1 torch thread, LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', '(unset: one a core)')}")
+          "then a batch's; 1 torch thread")
     ratios: dict[str, float] = {}
     arithmetics = arithmetics_here()  # bf16 only where this CPU runs it
     for precision in arithmetics:

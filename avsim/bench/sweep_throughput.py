@@ -159,7 +159,7 @@ def time_one_core(specs: Sequence[RunSpec]) -> Timing:
     with WorkerSampler(_is_pool_worker) as sampler:
         start = time.perf_counter()
         with ProcessPoolExecutor(1, mp_context=context, initializer=init_worker,
-                                 initargs=({"LP_NUM_THREADS": "0"}, os.getpid())) as pool:
+                                 initargs=({"LP_NUM_THREADS": "1"}, os.getpid())) as pool:
             pool.submit(run_batch, list(specs), workers=1, progress=False).result()
         wall_s = time.perf_counter() - start
     return Timing("local, 1 worker on 1 core", len(specs), wall_s, sampler.peak_mib, sampler.cpu_s)

@@ -7,15 +7,8 @@ import argparse
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    import os
-
     from avsim.sensors.gl import check_offscreen_rendering
 
-    if args.profile:
-        # The profile's runs are one thread's work, the renderer's included: llvmpipe draws in the calling
-        # thread, as a batch worker on one core's share does (`run_task.worker_env`). Mesa reads this when the
-        # first GL context starts, so it is set before the check below; a user's own value wins.
-        os.environ.setdefault("LP_NUM_THREADS", "0")
     check_offscreen_rendering()  # every printout renders: no EGL is one line before the first figure, not after it
     if args.profile:
         from avsim.bench.profile import run_profile

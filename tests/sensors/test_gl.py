@@ -147,8 +147,8 @@ print(digest.hexdigest())
 
 
 def test_the_rasteriser_thread_count_changes_no_pixel():
-    # A batch worker on one core's share rasterises in its own thread (LP_NUM_THREADS=0, `run_task.worker_env`);
-    # a lone run uses a thread per core. Every frame must be the same either way.
+    # A batch worker rasterises on its share of the cores (`run_task.worker_env`), a lone run on a thread per
+    # core, and 0 draws in the run's own thread. A run's result must not depend on which: every frame the same.
     digests = {}
     for threads in ("0", "1", "2"):
         env = {**os.environ, "LP_NUM_THREADS": threads, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
