@@ -123,6 +123,10 @@ SETTINGS: Mapping[str, RenderSetting] = MappingProxyType({s.name: s for s in (
                   "the facades' windows built as geometry in front of a plain wall, not painted in"),
     RenderSetting("textured_window_geometry", {"scenario": {"materials": "textured", "facade_windows": "geometry"}},
                   "textured, with the facades' windows built as geometry: sharp at a grazing view"),
+    RenderSetting("textured_window_geometry_msaa4",
+                  {"scenario": {"materials": "textured", "facade_windows": "geometry"}, "camera": {"offsamples": 4}},
+                  "textured_window_geometry with msaa4: the windows' and the crowns' edges averaged over the pixel, as a "
+                  "photosite averages them"),
     RenderSetting("textured_clusters", {"scenario": {"materials": "textured", "foliage": "clusters"}}, "textured and clusters together"),
     RenderSetting("textured_sheeting_shadows",
                   {"scenario": {"materials": "textured", "sign_materials": "sheeting", "sun_shadow_map_px": SHADOW_MAP_PX}},

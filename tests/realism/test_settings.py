@@ -32,3 +32,8 @@ def test_the_baseline_sets_nothing_and_set_values_go_over_a_setting():
     config = SETTINGS["photo"].config({"camera": {"jpeg_quality": 50}, "scenario": {"fog_end_m": 400.0}})
     assert config.camera.jpeg_quality == 50 and config.scenario.fog_end_m == 400.0
     assert config.camera.supersample == SETTINGS["photo"].config().camera.supersample == 2
+
+
+def test_the_windows_with_multisampling_are_the_windows_under_a_set_of_four_samples():
+    # docs/realism_filtering.md measured this render as `--setting textured_window_geometry --set camera.offsamples=4`.
+    assert SETTINGS["textured_window_geometry_msaa4"].config() == SETTINGS["textured_window_geometry"].config({"camera": {"offsamples": 4}})
