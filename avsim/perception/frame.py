@@ -66,8 +66,9 @@ def detect_parts_many(detector: FrameDetector, requests: list[FrameRequest]) -> 
 
 def detections_from_parts(detector: FrameDetector, parts: Any) -> list[Detection]:
     """The detections `detector` gives a frame from `detect_parts_many`'s parts of it (its own or those of a
-    detector with the same networks): an ensemble fuses them by its own rule."""
-    return detector.fuse(parts) if hasattr(detector, "fuse") else parts
+    detector with the same networks): an ensemble fuses them by its own rule. Keyed on `detect_members`, as
+    `detect_parts_many` is, not on `fuse`: the own detector's torch model has a `fuse` of another meaning."""
+    return detector.fuse(parts) if hasattr(detector, "detect_members") else parts
 
 
 class FramePerception(Perception):
