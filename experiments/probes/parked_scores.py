@@ -11,7 +11,7 @@ threshold under each; then the same per 5-m band of the bumper's distance, with 
 
     MUJOCO_GL=egl python experiments/probes/parked_scores.py attacks/success_coco_towns "driveby_detector, coco, Town03 far" window_geometry --dist-m 30:45
 
-Measured here: docs/realism_filtering.md, "Why Town03 far: the windows near the braking edge".
+Measured here: docs/realism_filtering.md, "Measured: why Town03 far, the windows near the braking edge".
 It is not part of avsim; it writes nothing.
 """
 
