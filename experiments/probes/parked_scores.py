@@ -6,8 +6,8 @@ the loop. For each seed of one cell of an experiment file (the seed draws the ce
 placed at rest with its bumper `start_dist_m` from the stop line, one frame is rendered per camera and
 perceived, and the highest stop-sign score is kept. The same poses and lighting are rendered under
 both settings, so each pair of scores differs by the render alone. It prints, per 1-m distance, the mean
-score under each setting over the seeds, the mean paired difference, and how many frames reach the policy's
-threshold under each; then the same per 5-m band of the bumper's distance, with how many pairs the setting lowers:
+score under each setting over the seeds, the mean paired difference, how many pairs the setting lowers, and how
+many frames reach the policy's threshold under each; then the same per 5-m band of the bumper's distance:
 
     MUJOCO_GL=egl python experiments/probes/parked_scores.py attacks/success_coco_towns "driveby_detector, coco, Town03 far" window_geometry --dist-m 30:45
 
@@ -58,32 +58,32 @@ def main() -> None:
     if not specs:
         parser.error(f"{args.experiment} has no cell {args.cell!r}")
     threshold = specs[0].config.policy.conf_threshold
-    print(f"{args.cell}, {len(specs)} seeds, {args.camera} camera: baseline against {args.setting}")
-    print("bumper to sign [m]  mean score, baseline  mean score, setting  mean paired difference  frames >= threshold")
-    frames = []  # (bumper to sign [m], baseline score, setting score), every seed and distance
+    frames = []  # (start distance [m], bumper to sign [m], baseline score, setting score), every seed and distance
     for start_dist_m in range(first_m, last_m + 1):
-        pairs, bumpers_m = [], []
         for spec in specs:
             bumper_m, base = parked_score(spec.config, "baseline", float(start_dist_m), args.camera)
             _, other = parked_score(spec.config, args.setting, float(start_dist_m), args.camera)
-            pairs.append((base, other))
-            bumpers_m.append(bumper_m)
-            frames.append((bumper_m, base, other))
-        base_scores, other_scores = zip(*pairs)
-        print(f"{statistics.mean(bumpers_m):6.1f}              {statistics.mean(base_scores):.3f}                 "
-              f"{statistics.mean(other_scores):.3f}                 {statistics.mean(o - b for b, o in pairs):+.3f}"
-              f"                  {sum(b >= threshold for b in base_scores)} / {sum(o >= threshold for o in other_scores)}"
-              f" of {len(pairs)}")
-    print(f"per {BAND_M}-m band: frames, mean score baseline / setting, mean paired difference, pairs the setting lowers, "
+            frames.append((start_dist_m, bumper_m, base, other))
+    print(f"{args.cell}, {len(specs)} seeds, {args.camera} camera: baseline against {args.setting}")
+    print("each row: frames, mean score baseline / setting, mean paired difference, pairs the setting lowers, "
           "frames >= threshold baseline / setting")
-    for low_m in range(int(min(f[0] for f in frames)) // BAND_M * BAND_M, int(max(f[0] for f in frames)) + 1, BAND_M):
-        band = [f for f in frames if low_m <= f[0] < low_m + BAND_M]
+    print("per start distance, at the mean bumper-to-sign distance [m]:")
+    for start_dist_m in range(first_m, last_m + 1):
+        rows = [f for f in frames if f[0] == start_dist_m]
+        print(f"{statistics.mean(f[1] for f in rows):6.1f} m: {_summary(rows, threshold)}")
+    print(f"per {BAND_M}-m band of the bumper's distance to the sign:")
+    for low_m in range(int(min(f[1] for f in frames)) // BAND_M * BAND_M, int(max(f[1] for f in frames)) + 1, BAND_M):
+        band = [f for f in frames if low_m <= f[1] < low_m + BAND_M]
         if band:
-            print(f"{low_m}-{low_m + BAND_M} m: {len(band)}, {statistics.mean(f[1] for f in band):.3f} / "
-                  f"{statistics.mean(f[2] for f in band):.3f}, {statistics.mean(f[2] - f[1] for f in band):+.3f}, "
-                  f"{sum(f[2] < f[1] for f in band)}, {sum(f[1] >= threshold for f in band)} / "
-                  f"{sum(f[2] >= threshold for f in band)}")
+            print(f"{low_m}-{low_m + BAND_M} m: {_summary(band, threshold)}")
 
+
+def _summary(rows: list[tuple[int, float, float, float]], threshold: float) -> str:
+    """One printed row over `rows` of (start distance, bumper distance, baseline score, setting score)."""
+    base, other = [r[2] for r in rows], [r[3] for r in rows]
+    return (f"{len(rows)}, {statistics.mean(base):.3f} / {statistics.mean(other):.3f}, "
+            f"{statistics.mean(o - b for b, o in zip(base, other)):+.3f}, {sum(o < b for b, o in zip(base, other))}, "
+            f"{sum(b >= threshold for b in base)} / {sum(o >= threshold for o in other)}")
 
 if __name__ == "__main__":
     main()
